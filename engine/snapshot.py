@@ -1,0 +1,142 @@
+"""The scene as the GPU side sees it: numpy arrays and small dataclasses, no bpy, no GL.
+
+`engine/scene.py` fills these from a Blender depsgraph; the built-in test scenes and the tests may also
+build them directly. Everything is in world space, metres, right-handed, Z up (Blender's convention).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Light kinds, as Blender names them.
+AREA, POINT, SPOT, SUN = "AREA", "POINT", "SPOT", "SUN"
+# Area light shapes.
+SQUARE, RECTANGLE, DISK, ELLIPSE = "SQUARE", "RECTANGLE", "DISK", "ELLIPSE"
+
+
+@dataclass
+class Light:
+    """One light. `matrix` is the object's world matrix with scale removed (columns: local X, Y, Z axes
+    and the position); lights emit along local -Z (area, spot, sun) or in all directions (point)."""
+
+    name: str
+    kind: str                       # AREA | POINT | SPOT | SUN
+    matrix: np.ndarray              # (4, 4) float64, orthonormal rotation + translation
+    color: np.ndarray               # (3,) float64, linear RGB, already includes temperature
+    power: float                    # watts for AREA/POINT/SPOT, W/m² (irradiance) for SUN; exposure applied
+    shape: str = SQUARE             # AREA only
+    size_x: float = 0.0             # AREA: full extent along local X in world units (object scale applied)
+    size_y: float = 0.0             # AREA: full extent along local Y (equals size_x for SQUARE/DISK)
+    radius: float = 0.0             # POINT/SPOT: sphere radius in world units
+    angle: float = 0.0              # SUN: full angular diameter in radians
+    spot_size: float = np.pi        # SPOT: full cone angle in radians
+    spot_blend: float = 0.0         # SPOT: 0..1
+    spot_scale: np.ndarray = field(default_factory=lambda: np.ones(3))  # SPOT: object scale (shapes the cone)
+    casts_shadow: bool = True
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.matrix[:3, 3]
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit emission axis (local -Z) in world space."""
+        return -self.matrix[:3, 2]
+
+    @property
+    def area(self) -> float:
+        """World-space emitting area of an AREA light (0 for other kinds)."""
+        if self.kind != AREA:
+            return 0.0
+        if self.shape in (DISK, ELLIPSE):
+            return float(np.pi / 4.0 * self.size_x * self.size_y)
+        return float(self.size_x * self.size_y)
+
+    @property
+    def is_delta(self) -> bool:
+        """True when the light has no extent, so its shadow is hard."""
+        if self.kind == AREA:
+            return self.size_x <= 0.0 or self.size_y <= 0.0
+        if self.kind == SUN:
+            return self.angle <= 0.0
+        return self.radius <= 0.0
+
+
+@dataclass
+class Camera:
+    """`view` maps world to camera space (camera looks down -Z); `projection` is OpenGL-style clip space
+    as Blender's `calc_matrix_camera` gives it (sensor fit, shift and orthographic already applied)."""
+
+    name: str
+    view: np.ndarray                # (4, 4) float64
+    projection: np.ndarray          # (4, 4) float64
+    width: int                      # pixels, resolution percentage applied
+    height: int
+    is_ortho: bool = False
+    clip_start: float = 0.1
+    clip_end: float = 100.0
+
+    @property
+    def position(self) -> np.ndarray:
+        return np.linalg.inv(self.view)[:3, 3]
+
+
+@dataclass
+class ObjectInfo:
+    """Per-object facts the techniques and the warnings need."""
+
+    name: str
+    caster: bool = True             # appears in shadow maps (Blender: visible_shadow)
+    receiver: bool = True           # appears in the camera view (Blender: visible_camera)
+    role: str = "BOTH"              # Penumbra object role for techniques that split casters/receivers
+
+
+@dataclass
+class SceneSnapshot:
+    """Triangle soup plus lights and camera.
+
+    positions: (T, 3, 3) float32 world-space corners, counter-clockwise seen from the front
+    normals:   (T, 3, 3) float32 unit shading normals per corner (smooth or flat as the mesh says)
+    object_id: (T,) int32 index into `objects`
+    albedo:    (T, 3) float32 linear RGB diffuse colour
+    """
+
+    positions: np.ndarray
+    normals: np.ndarray
+    object_id: np.ndarray
+    albedo: np.ndarray
+    objects: list[ObjectInfo]
+    lights: list[Light]
+    camera: Camera
+    name: str = "scene"
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def triangle_count(self) -> int:
+        return int(self.positions.shape[0])
+
+    def bounds(self, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds of the triangles selected by `mask` (all when None)."""
+        pos = self.positions if mask is None else self.positions[mask]
+        if pos.size == 0:
+            return np.zeros(3), np.zeros(3)
+        flat = pos.reshape(-1, 3)
+        return flat.min(axis=0).astype(np.float64), flat.max(axis=0).astype(np.float64)
+
+    def caster_mask(self) -> np.ndarray:
+        flags = np.array([o.caster for o in self.objects] or [False], dtype=bool)
+        return flags[self.object_id] if self.triangle_count else np.zeros(0, dtype=bool)
+
+    def receiver_mask(self) -> np.ndarray:
+        flags = np.array([o.receiver for o in self.objects] or [False], dtype=bool)
+        return flags[self.object_id] if self.triangle_count else np.zeros(0, dtype=bool)
+
+    @staticmethod
+    def empty_geometry() -> dict:
+        return dict(
+            positions=np.zeros((0, 3, 3), np.float32),
+            normals=np.zeros((0, 3, 3), np.float32),
+            object_id=np.zeros(0, np.int32),
+            albedo=np.zeros((0, 3), np.float32),
+        )
