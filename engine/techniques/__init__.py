@@ -1,0 +1,14 @@
+"""Registry of shadow techniques: identifier → instance, in the order the UI lists them."""
+from .hard import Hard
+from .pcf import Pcf
+from .pcss import Pcss
+from .averaged import AveragedMaps
+
+TECHNIQUES = {t.identifier: t for t in (Hard(), Pcf(), Pcss(), AveragedMaps())}
+
+
+def get(identifier: str):
+    try:
+        return TECHNIQUES[identifier]
+    except KeyError:
+        raise ValueError(f"Unknown technique '{identifier}'; choose one of {', '.join(TECHNIQUES)}") from None

@@ -1,0 +1,153 @@
+"""One frame, end to end on the GPU thread: G-buffer → per light (irradiance, light view, the structures the
+technique declares, visibility) → shading sums → passes as numpy arrays.
+
+Work a scene does not need is left out: a light that reaches no visible pixel is skipped before any shadow
+map exists, a light that casts no shadow (or a scene with no casters) gets V = 1 without a map, and only the
+structures the chosen technique declares are built.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import lightview, passes
+from .gpu.context import GpuWorker, Job
+from .gpu.frame import Frame, GpuGeometry
+from .settings import RenderSettings
+from .shading import light_uniforms
+from .snapshot import SceneSnapshot
+from .techniques import get as get_technique
+from .techniques.base import DEPTH_MAP, LightContext
+
+BACKGROUND_DEPTH = 1.0e10   # Blender's Depth pass value where nothing was hit
+
+
+@dataclass
+class FrameResult:
+    passes: dict            # pass name → (H, W, C) float32, row 0 at the bottom
+    timings: dict           # stage → milliseconds
+    warnings: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def total_ms(self) -> float:
+        return float(sum(self.timings.values()))
+
+
+class Progress:
+    """Splits the frame's progress between lights; techniques report their own fraction of one light."""
+
+    def __init__(self, job: Job, lights: int):
+        self.job, self.lights, self.index = job, max(lights, 1), 0
+
+    def step(self, fraction: float, message: str = "") -> None:
+        self.job.progress((self.index + min(max(fraction, 0.0), 1.0)) / self.lights, message)
+
+    def check(self) -> None:
+        self.job.check()
+
+
+def render(snap: SceneSnapshot, settings: RenderSettings, *, on_progress=None, should_stop=None,
+           worker: GpuWorker | None = None) -> FrameResult:
+    """Render one frame on the GPU thread; blocks this thread, forwarding progress and cancellation."""
+    settings.validate()
+    worker = worker or GpuWorker.get()
+    return worker.run(render_job, snap, settings, on_progress=on_progress, should_stop=should_stop)
+
+
+def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
+               geometry: GpuGeometry | None = None) -> FrameResult:
+    technique = get_technique(settings.technique)
+    warnings = list(snap.warnings)
+    frame = Frame(worker, snap, settings, geometry)
+    try:
+        frame.progress = Progress(job, len(snap.lights))
+        frame.bias_uniforms = {"u_bias": float(settings.bias), "u_normal_offset": float(settings.normal_offset)}
+        result = _render_lights(frame, technique, warnings)
+    finally:
+        frame.release()
+    return result
+
+
+def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
+    snap, settings, t = frame.snap, frame.settings, frame.timings
+    size = (frame.width, frame.height)
+    combined, unshadowed = frame.texture(size, 4), frame.texture(size, 4)
+    sums = frame.texture(size, 2)
+    for tex in (combined, unshadowed, sums):
+        tex.write(np.zeros((frame.height, frame.width, tex.components), np.float32).tobytes())
+    irradiance, visibility = frame.texture(size, 4), frame.texture(size, 1)
+    ones = np.ones((frame.height, frame.width), np.float32).tobytes()
+
+    with t.stage("readback"):
+        position = frame.read(frame.gbuffer["g_position"])
+    covered = position[..., 3] > 0.0
+    caster_mask = snap.caster_mask()
+    casters = snap.bounds(caster_mask) if caster_mask.any() else None
+    stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
+             "covered_pixels": int(covered.sum()), "technique": technique.identifier}
+    if not snap.lights:
+        warnings.append(f"Scene '{snap.name}' has no lights: Combined is black and Visibility is 1.")
+    if casters is None and snap.lights:
+        warnings.append(f"Scene '{snap.name}' has no shadow casters: every light is unshadowed.")
+
+    for index, light in enumerate(snap.lights):
+        frame.progress.index = index
+        frame.progress.step(0.0, f"{light.name}: irradiance")
+        frame.progress.check()
+        with t.stage("irradiance"):
+            frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance})
+        with t.stage("readback"):
+            lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
+        if not lit.any():
+            stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
+            continue
+        if not light.casts_shadow or casters is None:
+            visibility.write(ones)
+            stats["lights_unshadowed"] += 1
+        else:
+            pts = position[lit][:, :3]
+            receivers = (pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64))
+            with t.stage("light_view"):
+                view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
+            if view.clamped:
+                warnings.append(f"Light '{light.name}': visible receivers span more than "
+                                f"{2 * np.degrees(lightview.MAX_HALF_ANGLE):.0f}° from the light; pixels outside "
+                                "its shadow map are treated as lit.")
+            lc = LightContext(light, view, irradiance, receivers, casters,
+                              {**view.uniforms(), **frame.bias_uniforms})
+            if DEPTH_MAP in technique.needs:
+                with t.stage("shadow_map"):
+                    lc.structures[DEPTH_MAP] = frame.render_depth_map(view)
+            with t.stage("visibility"):
+                technique.visibility(frame, lc, visibility)
+        with t.stage("accumulate"):
+            frame.dispatch("shading/accumulate.comp", samplers={"g_irradiance": irradiance,
+                           "u_visibility": visibility},
+                           images={0: combined, 1: unshadowed, 2: sums})
+        frame.progress.step(1.0, f"{light.name}: done")
+
+    with t.stage("readback"):
+        out = _finish(frame, combined, unshadowed, sums, covered)
+    return FrameResult(out, dict(t), warnings, stats)
+
+
+def _finish(frame: Frame, combined, unshadowed, sums, covered) -> dict:
+    s = frame.read(sums)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        vis = np.where(s[..., 1] > 0.0, s[..., 0] / s[..., 1], 1.0)
+    vis = np.clip(np.nan_to_num(vis, nan=1.0), 0.0, 1.0).astype(np.float32)
+    rgba = frame.read(combined).copy()
+    rgba[..., 3] = 1.0
+    depth = np.where(covered, frame.read(frame.gbuffer["g_normal"])[..., 3], BACKGROUND_DEPTH)
+    out = {
+        "Combined": rgba,
+        "Depth": depth[..., None].astype(np.float32),
+        "Visibility": vis[..., None],
+        "Unshadowed": frame.read(unshadowed, 3).copy(),
+    }
+    if frame.settings.debug_passes:
+        out["Irradiance"] = s[..., 1:2].copy()
+    return {name: out[name] for name, *_ in passes.render_passes(frame.settings)}

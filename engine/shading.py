@@ -1,0 +1,59 @@
+"""Light → uniforms of glsl/shading/irradiance.glsl.
+
+Blender's power conventions (checked against Cycles in tests/test_irradiance_cycles.py, the numpy twin is
+engine/irradiance.py):
+  area light, power P [W] over area A:   radiance L = P / (π·A)             (all of P leaves the front side)
+  sphere light, power P, radius r:       radiance L = P / (4π·r² · π)        (intensity P/(4π) W/sr)
+  point light, radius 0:                 intensity I = P / (4π)
+  sun, strength S [W/m²], angle a:       irradiance S at normal incidence; as a disk of directions of
+                                         half-angle a/2, L = S / (π·sin²(a/2))
+Colour multiplies each, and Light.power already carries 2^exposure.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
+
+LIGHT_POLYGON, LIGHT_SPHERE, LIGHT_POINT, LIGHT_SUN = 0, 1, 2, 3
+ELLIPSE_SIDES = 64
+
+
+def light_uniforms(light: Light) -> dict:
+    m = np.asarray(light.matrix, float)
+    x_axis, y_axis, z_axis, pos = m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3]
+    color = np.asarray(light.color, float) * light.power
+    u = {
+        "u_center": tuple(pos), "u_emit_dir": tuple(-z_axis), "u_axis_u": (0.0, 0.0, 0.0),
+        "u_axis_v": (0.0, 0.0, 0.0), "u_sides": 4, "u_radius": 0.0, "u_one_sided": 0, "u_spot": 0,
+        "u_spot_to_local": tuple(np.eye(3).ravel()), "u_spot_cos_half": -1.0, "u_spot_smooth": 0.0,
+    }
+    if light.kind == AREA and not light.is_delta:
+        u.update(u_shape=LIGHT_POLYGON, u_one_sided=1,
+                 u_axis_u=tuple(x_axis * light.size_x / 2), u_axis_v=tuple(y_axis * light.size_y / 2),
+                 u_sides=ELLIPSE_SIDES if light.shape in (DISK, ELLIPSE) else 4,
+                 u_radiance=tuple(color / (np.pi * light.area)))
+    elif light.kind == SUN:
+        half = light.angle / 2.0
+        if half > 1e-6:
+            u.update(u_shape=LIGHT_SUN, u_radius=float(np.tan(half)),
+                     u_radiance=tuple(color / (np.pi * np.sin(half) ** 2)))
+        else:
+            u.update(u_shape=LIGHT_SUN, u_radius=0.0, u_radiance=tuple(color))
+    elif light.kind in (POINT, SPOT) and light.radius > 0.0:
+        u.update(u_shape=LIGHT_SPHERE, u_radius=float(light.radius),
+                 u_radiance=tuple(color / (4.0 * np.pi ** 2 * light.radius ** 2)))
+    else:
+        # A point light, a zero-radius spot, or a zero-size area light treated as a point.
+        scale = 1.0 / (4.0 * np.pi)
+        u.update(u_shape=LIGHT_POINT, u_radiance=tuple(color * scale))
+        if light.kind == AREA:
+            # A vanishing area light still emits only forwards, with a cosine lobe: I(θ) = P/π · cosθ.
+            u.update(u_one_sided=1, u_radiance=tuple(color / np.pi))
+    if light.kind == SPOT:
+        cos_half = float(np.cos(light.spot_size / 2.0))
+        scale = np.asarray(light.spot_scale, float)
+        to_local = np.diag(1.0 / np.maximum(np.abs(scale), 1e-12)) @ m[:3, :3].T
+        u.update(u_spot=1, u_spot_cos_half=cos_half, u_spot_smooth=float((1.0 - cos_half) * light.spot_blend),
+                 u_spot_to_local=tuple(to_local.T.ravel()))
+    return u

@@ -1,0 +1,17 @@
+// Per-pixel inputs shared by the compute passes: the camera G-buffer and this light's irradiance.
+layout(local_size_x = 8, local_size_y = 8) in;
+
+uniform sampler2D g_position;
+uniform sampler2D g_normal;
+uniform sampler2D g_geometric;
+uniform sampler2D g_irradiance;   // rgb: unoccluded irradiance from this light, a: its scalar weight
+uniform ivec2 u_image_size;
+
+bool pixel_in_image(ivec2 px) {
+    return all(lessThan(px, u_image_size));
+}
+
+// True where this light reaches a covered pixel; only those pixels need a visibility.
+bool pixel_lit(ivec2 px) {
+    return texelFetch(g_position, px, 0).w > 0.0 && texelFetch(g_irradiance, px, 0).a > 0.0;
+}

@@ -1,0 +1,19 @@
+// HARD: one nearest-texel comparison against the depth map from the light centre.
+#include "common/pixel.glsl"
+#include "common/light_view.glsl"
+
+uniform sampler2D u_depth_map;
+layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (!pixel_in_image(px)) return;
+    float v = 1.0;
+    if (pixel_lit(px)) {
+        float bias;
+        vec3 l = biased_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz, bias);
+        vec3 m = map_coords(l);
+        v = map_lit(u_depth_map, ivec2(floor(m.xy)), m.z - bias);
+    }
+    imageStore(u_visibility, px, vec4(v));
+}

@@ -1,0 +1,28 @@
+// PCF: mean of bilinear comparisons on a regular taps×taps grid spanning ±radius texels.
+#include "common/pixel.glsl"
+#include "common/light_view.glsl"
+
+uniform sampler2D u_depth_map;
+uniform float u_radius;
+uniform int u_taps;
+layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (!pixel_in_image(px)) return;
+    float v = 1.0;
+    if (pixel_lit(px)) {
+        float bias;
+        vec3 l = biased_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz, bias);
+        vec3 m = map_coords(l);
+        float step_size = u_taps > 1 ? 2.0 * u_radius / float(u_taps - 1) : 0.0;
+        float sum = 0.0;
+        for (int j = 0; j < u_taps; ++j)
+            for (int i = 0; i < u_taps; ++i) {
+                vec2 offset = (vec2(i, j) - 0.5 * float(u_taps - 1)) * step_size;
+                sum += map_lit_bilinear(u_depth_map, m.xy + offset, m.z - bias);
+            }
+        v = sum / float(u_taps * u_taps);
+    }
+    imageStore(u_visibility, px, vec4(v));
+}

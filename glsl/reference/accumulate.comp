@@ -1,0 +1,30 @@
+// REFERENCE: adds one hard shadow map, rendered from one sample point of the light, to running sums.
+// Each sample is weighted by its unoccluded contribution at the pixel (cosines over squared distance), so
+// the average converges to the irradiance-weighted visibility that Cycles' shadowed/unshadowed ratio gives.
+#include "common/pixel.glsl"
+#include "common/light_view.glsl"
+
+uniform sampler2D u_depth_map;
+uniform vec3 u_sample_position;   // world position of the sample (perspective views)
+uniform vec3 u_emit_dir;          // light's emission axis (world)
+uniform int u_weight_mode;        // 0: none, 1: area (both cosines), 2: sphere (receiver cosine)
+layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (!pixel_in_image(px) || !pixel_lit(px)) return;
+    vec3 p = texelFetch(g_position, px, 0).xyz;
+    float bias;
+    vec3 l = biased_receiver(p, texelFetch(g_geometric, px, 0).xyz, bias);
+    vec3 m = map_coords(l);
+    float v = map_lit(u_depth_map, ivec2(floor(m.xy)), m.z - bias);
+    float w = 1.0;
+    if (u_weight_mode > 0) {
+        vec3 to_sample = u_sample_position - p;
+        float d2 = max(dot(to_sample, to_sample), 1e-30);
+        vec3 dir = to_sample * inversesqrt(d2);
+        w = max(dot(texelFetch(g_normal, px, 0).xyz, dir), 0.0) / d2;
+        if (u_weight_mode == 1) w *= max(dot(-dir, u_emit_dir), 0.0);
+    }
+    imageStore(u_sums, px, imageLoad(u_sums, px) + vec4(w * v, w, v, 1.0));
+}

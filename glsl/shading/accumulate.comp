@@ -1,0 +1,21 @@
+// Adds one light's shaded contribution: Combined += albedo/π·E·V, Unshadowed += albedo/π·E,
+// and the scalar sums that give the Visibility pass (Σ E·V / Σ E).
+#include "common/pixel.glsl"
+
+uniform sampler2D g_albedo;
+uniform sampler2D u_visibility;
+
+layout(rgba32f, binding = 0) uniform image2D u_combined;
+layout(rgba32f, binding = 1) uniform image2D u_unshadowed;
+layout(rg32f, binding = 2) uniform image2D u_visibility_sums;
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (!pixel_in_image(px) || !pixel_lit(px)) return;
+    vec4 e = texelFetch(g_irradiance, px, 0);
+    float v = clamp(texelFetch(u_visibility, px, 0).r, 0.0, 1.0);
+    vec3 radiance = texelFetch(g_albedo, px, 0).rgb * 0.318309886 * e.rgb;
+    imageStore(u_combined, px, imageLoad(u_combined, px) + vec4(radiance * v, 0.0));
+    imageStore(u_unshadowed, px, imageLoad(u_unshadowed, px) + vec4(radiance, 0.0));
+    imageStore(u_visibility_sums, px, imageLoad(u_visibility_sums, px) + vec4(e.a * v, e.a, 0.0, 0.0));
+}

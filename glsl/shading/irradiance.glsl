@@ -1,0 +1,124 @@
+// Unoccluded irradiance from one light at a receiver, analytic for every light kind (engine/shading.py
+// packs the uniforms; engine/irradiance.py is the same mathematics in numpy, checked against Cycles).
+//
+// Every extended light is a convex polygon of constant radiance seen from x: a rectangle, an N-gon for a
+// disk or ellipse, the tangency circle of a sphere (a sphere and the disk of its tangency circle subtend
+// the same cone of directions), or a disk of directions for the sun. The polygon is clipped to the
+// receiver's upper hemisphere and integrated with Lambert's edge formula:
+//     E = L/2 · |Σ_i θ_i · n·ĝ_i|,  θ_i = angle between v_i and v_{i+1},  ĝ_i = normalize(v_i × v_{i+1}).
+
+const int LIGHT_POLYGON = 0;   // area light: rectangle (sides = 4) or ellipse (sides > 4)
+const int LIGHT_SPHERE = 1;    // point/spot with a radius
+const int LIGHT_POINT = 2;     // point/spot without radius: I·cosθ/d²
+const int LIGHT_SUN = 3;       // sun: disk of directions, or S·cosθ when the angle is zero
+const int MAX_SIDES = 64;
+
+uniform int u_shape;
+uniform int u_sides;
+uniform vec3 u_center;         // light position (world)
+uniform vec3 u_axis_u;         // polygon half-extent along local X (world vector)
+uniform vec3 u_axis_v;         // polygon half-extent along local Y
+uniform vec3 u_emit_dir;       // unit emission axis (local -Z) in world space
+uniform float u_radius;        // sphere radius, or tan(angle/2) for the sun
+uniform vec3 u_radiance;       // polygon/sphere/sun radiance, or point intensity (W/sr), RGB
+uniform int u_one_sided;       // area lights emit only towards u_emit_dir
+uniform int u_spot;            // spot cone applies
+uniform mat3 u_spot_to_local;  // world → spot-local with the object's scale folded in (Cycles' cone shape)
+uniform float u_spot_cos_half;
+uniform float u_spot_smooth;
+
+float edge_term(vec3 a, vec3 b, vec3 n) {
+    vec3 c = cross(a, b);
+    float s = length(c);
+    if (s <= 1e-20) return 0.0;
+    // atan(|a×b|, a·b) keeps tiny angles accurate where acos would lose them.
+    return atan(s, dot(a, b)) * dot(n, c) / s;
+}
+
+vec3 polygon_vertex(int i, vec3 center, vec3 u, vec3 v, int sides) {
+    if (sides == 4) {
+        const vec2 corners[4] = vec2[4](vec2(-1, -1), vec2(1, -1), vec2(1, 1), vec2(-1, 1));
+        return center + corners[i].x * u + corners[i].y * v;
+    }
+    // Regular N-gon scaled so its area equals the ellipse's: k² · N/2 · sin(2π/N) = π.
+    float k = sqrt(6.28318530718 / (float(sides) * sin(6.28318530718 / float(sides))));
+    float phi = 6.28318530718 * float(i) / float(sides);
+    return center + k * (cos(phi) * u + sin(phi) * v);
+}
+
+// Σ of Lambert edge terms over the polygon clipped to n·v ≥ 0; vertices relative to the receiver.
+float clipped_polygon_sum(vec3 center, vec3 u, vec3 v, int sides, vec3 n) {
+    float sum = 0.0;
+    vec3 first = vec3(0.0), prev = vec3(0.0);
+    bool have = false;
+    vec3 a = polygon_vertex(sides - 1, center, u, v, sides);
+    float ha = dot(n, a);
+    for (int i = 0; i < MAX_SIDES; ++i) {
+        if (i >= sides) break;
+        vec3 b = polygon_vertex(i, center, u, v, sides);
+        float hb = dot(n, b);
+        vec3 out_pts[2];
+        int count = 0;
+        if ((ha >= 0.0) != (hb >= 0.0)) {
+            out_pts[count++] = a + (b - a) * (ha / (ha - hb));   // the edge crosses the horizon
+        }
+        if (hb >= 0.0) out_pts[count++] = b;
+        for (int k = 0; k < count; ++k) {
+            if (have) sum += edge_term(prev, out_pts[k], n); else { first = out_pts[k]; have = true; }
+            prev = out_pts[k];
+        }
+        a = b;
+        ha = hb;
+    }
+    if (have) sum += edge_term(prev, first, n);
+    return abs(sum);
+}
+
+vec3 orthogonal(vec3 d) {
+    return abs(d.z) < 0.9 ? normalize(cross(d, vec3(0, 0, 1))) : normalize(cross(d, vec3(0, 1, 0)));
+}
+
+// Cycles' spot cone: smoothstep over the blend band inside the cone, measured in the scaled spot frame.
+float spot_attenuation(vec3 x) {
+    vec3 dir = normalize(u_spot_to_local * (x - u_center));
+    float c = -dir.z;
+    if (c <= u_spot_cos_half) return 0.0;
+    float t = c - u_spot_cos_half;
+    if (u_spot_smooth > 0.0 && t < u_spot_smooth) return smoothstep(0.0, u_spot_smooth, t);
+    return 1.0;
+}
+
+vec3 light_irradiance(vec3 x, vec3 n) {
+    vec3 to_light = u_center - x;
+    float spot = u_spot == 1 ? spot_attenuation(x) : 1.0;
+    if (spot <= 0.0) return vec3(0.0);
+    if (u_shape == LIGHT_POLYGON) {
+        if (u_one_sided == 1 && dot(x - u_center, u_emit_dir) <= 0.0) return vec3(0.0);
+        return u_radiance * (0.5 * clipped_polygon_sum(to_light, u_axis_u, u_axis_v, u_sides, n));
+    }
+    if (u_shape == LIGHT_POINT) {
+        float d2 = max(dot(to_light, to_light), 1e-30);
+        float lobe = u_one_sided == 1 ? max(dot(-to_light, u_emit_dir), 0.0) / sqrt(d2) : 1.0;
+        return u_radiance * spot * lobe * max(dot(n, to_light), 0.0) / (d2 * sqrt(d2));
+    }
+    if (u_shape == LIGHT_SUN && u_radius <= 0.0) {
+        return u_radiance * max(dot(n, -u_emit_dir), 0.0);
+    }
+    vec3 dir, center;
+    float rho;
+    if (u_shape == LIGHT_SUN) {
+        dir = -u_emit_dir;                       // a disk of directions at unit distance
+        center = dir;
+        rho = u_radius;
+    } else {
+        float d = length(to_light);
+        d = max(d, u_radius * 1.0001 + 1e-30);   // inside the sphere: clamp to its surface
+        dir = to_light / max(length(to_light), 1e-30);
+        float r2 = u_radius * u_radius;
+        center = dir * ((d * d - r2) / d);       // tangency circle: centre and radius
+        rho = u_radius * sqrt(max(d * d - r2, 0.0)) / d;
+    }
+    vec3 u = orthogonal(dir);
+    vec3 v = cross(dir, u);
+    return u_radiance * spot * (0.5 * clipped_polygon_sum(center, u * rho, v * rho, 32, n));
+}
