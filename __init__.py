@@ -1,15 +1,21 @@
 """Penumbra: a soft-shadow render engine for Blender, measured against Cycles.
 
-Only register()/unregister() live here. Importing the package pulls in no bpy, so the engine's GPU side and
-the command line work without Blender's UI.
+Only register()/unregister() live here. Importing the package pulls in no bpy, so the GPU pipeline and the
+command line work without Blender's UI.
 """
 
 
+def _modules():
+    from . import operators, ui
+    from .engine import render_engine
+    return (ui, render_engine, operators)
+
+
 def register():
-    from . import blender
-    blender.register()
+    for module in _modules():
+        module.register()
 
 
 def unregister():
-    from . import blender
-    blender.unregister()
+    for module in reversed(_modules()):
+        module.unregister()

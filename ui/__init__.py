@@ -1,0 +1,11 @@
+from . import panels, properties
+
+
+def register():
+    properties.register()
+    panels.register()
+
+
+def unregister():
+    panels.unregister()
+    properties.unregister()

@@ -1,0 +1,123 @@
+"""Panels in Render, Light and Object Properties, shown only when Penumbra is the render engine."""
+from __future__ import annotations
+
+import bpy
+
+ENGINE = "PENUMBRA"
+
+# Which settings each technique reads, in the order the panel shows them.
+TECHNIQUE_SETTINGS = {
+    "HARD": (),
+    "PCF": ("pcf_radius", "pcf_taps"),
+    "PCSS": ("pcss_blocker_samples", "pcss_filter_samples", "pcss_max_radius"),
+    "REFERENCE": ("reference_samples", "reference_weighted", "seed"),
+}
+
+
+class PenumbraPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
+    bl_label = "Penumbra Shadows"
+    bl_context = "render"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        props = context.scene.penumbra
+        layout.prop(props, "technique")
+        layout.prop(props, "shadow_map_size")
+        col = layout.column(align=True)
+        col.prop(props, "bias")
+        col.prop(props, "normal_offset")
+        names = TECHNIQUE_SETTINGS.get(props.technique, ())
+        if names:
+            box = layout.column(heading=props.technique.title())
+            for name in names:
+                box.prop(props, name)
+        layout.prop(props, "debug_passes")
+
+
+class DATA_PT_penumbra_light(PenumbraPanel, bpy.types.Panel):
+    bl_label = "Penumbra"
+    bl_context = "data"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.light is not None
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        light = context.light
+        layout.prop(light, "color")
+        layout.prop(light, "energy")
+        layout.prop(light, "use_shadow", text="Cast Shadow")
+        if light.type == "AREA":
+            layout.prop(light, "shape")
+            col = layout.column(align=True)
+            if light.shape in {"SQUARE", "DISK"}:
+                col.prop(light, "size")
+            else:
+                col.prop(light, "size", text="Size X")
+                col.prop(light, "size_y", text="Y")
+            if light.spread < 3.14159:
+                layout.label(text="Spread below 180° is not modelled", icon="INFO")
+        elif light.type in {"POINT", "SPOT"}:
+            layout.prop(light, "shadow_soft_size", text="Radius")
+            if light.type == "SPOT":
+                layout.prop(light, "spot_size")
+                layout.prop(light, "spot_blend")
+        elif light.type == "SUN":
+            layout.prop(light, "angle")
+
+
+class OBJECT_PT_penumbra(PenumbraPanel, bpy.types.Panel):
+    bl_label = "Penumbra"
+    bl_context = "object"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.object is not None and context.object.type != "LIGHT"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        obj = context.object
+        layout.prop(obj.penumbra, "role")
+        col = layout.column(heading="Visibility")
+        col.prop(obj, "visible_camera", text="Camera")
+        col.prop(obj, "visible_shadow", text="Shadow")
+
+
+classes = (RENDER_PT_penumbra, DATA_PT_penumbra_light, OBJECT_PT_penumbra)
+
+
+def _compatible_panels():
+    """Blender's stock panels that make sense for Penumbra too (dimensions, output, colour management …)."""
+    exclude = {"VIEWLAYER_PT_filter", "VIEWLAYER_PT_layer_passes"}
+    for panel in bpy.types.Panel.__subclasses__():
+        engines = getattr(panel, "COMPAT_ENGINES", None)
+        if engines is not None and "BLENDER_RENDER" in engines and panel.__name__ not in exclude:
+            yield panel
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for panel in _compatible_panels():
+        panel.COMPAT_ENGINES.add(ENGINE)
+
+
+def unregister():
+    for panel in _compatible_panels():
+        panel.COMPAT_ENGINES.discard(ENGINE)
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

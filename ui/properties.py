@@ -1,0 +1,74 @@
+"""Blender properties: scene.penumbra (render settings, one property per RenderSettings field) and
+object.penumbra (the object's role for techniques that split casters from receivers)."""
+from __future__ import annotations
+
+import bpy
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+
+from ..engine.settings import RenderSettings
+from ..engine.techniques import TECHNIQUES
+
+_D = RenderSettings()   # defaults come from the dataclass, so the two never disagree
+
+
+class PenumbraSceneSettings(bpy.types.PropertyGroup):
+    technique: EnumProperty(name="Technique", items=[
+        (t.identifier, t.label, t.description) for t in TECHNIQUES.values()], default=_D.technique,
+        description="Soft-shadow technique for final renders")
+    shadow_map_size: IntProperty(name="Shadow Map Size", default=_D.shadow_map_size, min=16, max=16384,
+                                 soft_min=128, soft_max=4096,
+                                 description="Texels along the longer side of each light's shadow map")
+    bias: FloatProperty(name="Bias", default=_D.bias, min=0.0, max=100.0,
+                        description="Depth bias in shadow-map texels, scaled by the receiver's slope")
+    normal_offset: FloatProperty(name="Normal Offset", default=_D.normal_offset, min=0.0, max=100.0,
+                                 description="Receiver offset along its normal, in shadow-map texels")
+    pcf_radius: FloatProperty(name="Radius", default=_D.pcf_radius, min=0.0, max=256.0,
+                              description="PCF kernel radius in texels")
+    pcf_taps: IntProperty(name="Taps", default=_D.pcf_taps, min=1, max=33,
+                          description="Taps per side of the PCF kernel")
+    pcss_blocker_samples: IntProperty(name="Blocker Samples", default=_D.pcss_blocker_samples, min=1, max=1024)
+    pcss_filter_samples: IntProperty(name="Filter Samples", default=_D.pcss_filter_samples, min=1, max=4096)
+    pcss_max_radius: FloatProperty(name="Max Radius", default=_D.pcss_max_radius, min=1.0, max=1024.0,
+                                   description="Cap on the search and filter radius, in texels")
+    reference_samples: IntProperty(name="Light Samples", default=_D.reference_samples, min=1, max=4096,
+                                   description="Hard shadow maps averaged per light")
+    reference_weighted: BoolProperty(name="Weighted", default=_D.reference_weighted,
+                                     description="Weight each light sample by its unoccluded contribution")
+    seed: IntProperty(name="Seed", default=_D.seed, min=0)
+    debug_passes: BoolProperty(name="Debug Passes", default=_D.debug_passes,
+                               description="Also write the technique's debug passes")
+
+
+class PenumbraObjectSettings(bpy.types.PropertyGroup):
+    role: EnumProperty(name="Shadow Role", default="BOTH", items=[
+        ("BOTH", "Caster and Receiver", "Casts shadows and receives them"),
+        ("CASTER", "Caster", "Only casts shadows (for techniques that split casters from receivers)"),
+        ("RECEIVER", "Receiver", "Only receives shadows (for techniques that split casters from receivers)"),
+    ])
+
+
+def settings_from_scene(scene) -> RenderSettings:
+    """RenderSettings from scene.penumbra (defaults where a field has no property)."""
+    props = getattr(scene, "penumbra", None)
+    values = {}
+    for name in RenderSettings.field_names():
+        if props is not None and name in props.bl_rna.properties:
+            values[name] = getattr(props, name)
+    return RenderSettings(**values)
+
+
+classes = (PenumbraSceneSettings, PenumbraObjectSettings)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.penumbra = PointerProperty(type=PenumbraSceneSettings)
+    bpy.types.Object.penumbra = PointerProperty(type=PenumbraObjectSettings)
+
+
+def unregister():
+    del bpy.types.Object.penumbra
+    del bpy.types.Scene.penumbra
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
