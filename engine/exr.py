@@ -54,11 +54,12 @@ def read(path: str) -> dict:
     out: dict = {}
     with OpenEXR.File(path, separate_channels=True) as f:
         for part in f.parts:
-            prefix = part.name().split(".", 1)[-1] + "." if "." in (part.name() or "") else ""
+            part_layer = (part.name() or "Combined").rpartition(".")[2]
             for cname, channel in part.channels.items():
-                full = prefix + cname if prefix and not cname.startswith(prefix) else cname
-                layer, _, cid = full.rpartition(".")
-                out.setdefault(layer or "Combined", {})[cid] = np.flipud(channel.pixels.astype(np.float32))
+                # "ViewLayer.Combined.R" (Blender), "Combined.R" (ours) or a bare "R" in a named part.
+                pieces = cname.split(".")
+                layer = pieces[-2] if len(pieces) > 1 else part_layer
+                out.setdefault(layer, {})[pieces[-1]] = np.flipud(channel.pixels.astype(np.float32))
     result = {}
     for layer, chans in out.items():
         order = _CHANNELS.get(layer) or "".join(c for c in "RGBAXYZ" if c in chans) or "".join(chans)

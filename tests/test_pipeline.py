@@ -8,7 +8,7 @@ from penumbra.engine.gpu import programs
 from penumbra.engine.settings import RenderSettings
 from penumbra.engine.techniques import TECHNIQUES
 
-from .synthetic import floating_plane
+from penumbra.tests.synthetic import floating_plane
 
 
 def ground_points(snap):
