@@ -1,0 +1,452 @@
+"""Built-in test scenes, built in code with the bpy data API.
+
+Used by the command line (``python -m penumbra render --scene NAME``), the tests and the benchmarks.
+Every scene is deterministic (the only randomness is seeded) and has
+
+* one AREA light named "Light" (emitting along its local -Z), powered so that the unshadowed ground near
+  the shadow has a Lambertian radiance of about ``TARGET_RADIANCE`` (ground albedo ``GROUND_ALBEDO``);
+* a large receiver plane named "Ground" (z = 0, albedo 0.8 grey) that fills the camera's view;
+* a camera named "Camera" framing the shadow so that the penumbra covers a good part of the image;
+* a black world, so that in Cycles the only direct light is the area light.
+
+Units: metres, Z up. The render engine is left alone (the caller picks it); so are Cycles' sample and
+bounce settings.
+"""
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from typing import Callable
+
+import numpy as np
+
+import bpy
+import bmesh
+from mathutils import Euler, Matrix, Vector
+
+GROUND_ALBEDO = 0.8
+OCCLUDER_RGB = (0.8, 0.35, 0.2)     # a warm orange, distinct from the grey ground
+TARGET_RADIANCE = 0.8               # radiance of the lit ground at the scene's reference point
+GROUND_NAME = "Ground"
+LIGHT_NAME = "Light"
+CAMERA_NAME = "Camera"
+
+
+# --------------------------------------------------------------------------------------------------
+# Helpers shared by all scenes
+# --------------------------------------------------------------------------------------------------
+
+def diffuse_material(name: str, rgb) -> bpy.types.Material:
+    """A node material whose Cycles response is pure Lambertian with albedo `rgb`.
+
+    This is the one place where materials are made; change the node set-up here only.
+    Principled BSDF with no specular layer and roughness 1 renders identically to a Diffuse BSDF in
+    Cycles 5.0 (checked: same pixel values under an area light with max_bounces 0).
+    """
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree                      # new materials come with Principled BSDF + Material Output
+    if nt is None:                          # older Blender: node tree only after use_nodes
+        mat.use_nodes = True
+        nt = mat.node_tree
+    bsdf = next((n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled"), None)
+    out = next((n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial"), None)
+    if bsdf is None:
+        bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    if out is None:
+        out = nt.nodes.new("ShaderNodeOutputMaterial")
+    rgba = (float(rgb[0]), float(rgb[1]), float(rgb[2]), 1.0)
+    bsdf.inputs["Base Color"].default_value = rgba
+    bsdf.inputs["Roughness"].default_value = 1.0
+    bsdf.inputs["Metallic"].default_value = 0.0
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    bsdf.inputs["Coat Weight"].default_value = 0.0
+    bsdf.inputs["Sheen Weight"].default_value = 0.0
+    bsdf.inputs["Transmission Weight"].default_value = 0.0
+    bsdf.inputs["Emission Strength"].default_value = 0.0
+    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    mat.diffuse_color = rgba                # viewport / solid-mode colour, also read by simple exporters
+    return mat
+
+
+def _setup_scene(scene: bpy.types.Scene, resolution) -> None:
+    """Scene-level settings shared by every built-in scene."""
+    scene.render.resolution_x = int(resolution[0])
+    scene.render.resolution_y = int(resolution[1])
+    scene.render.resolution_percentage = 100
+    scene.render.film_transparent = False
+    scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1.0
+    # Linear, untouched display so PNGs show radiance directly (EXR output is scene-linear anyway).
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    world = bpy.data.worlds.new("World")
+    world.color = (0.0, 0.0, 0.0)
+    if world.node_tree is not None:
+        for node in world.node_tree.nodes:
+            if node.bl_idname == "ShaderNodeBackground":
+                node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+                node.inputs["Strength"].default_value = 0.0
+    scene.world = world
+
+
+def _link(scene, obj):
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def _mesh_object(scene, name, verts, faces, material, *, smooth=False, matrix=None):
+    """Object from python/numpy vertex and face lists (small meshes)."""
+    me = bpy.data.meshes.new(name)
+    me.from_pydata([tuple(map(float, v)) for v in verts], [], [tuple(map(int, f)) for f in faces],
+                   shade_flat=not smooth)
+    me.update()
+    me.materials.append(material)
+    obj = bpy.data.objects.new(name, me)
+    if matrix is not None:
+        obj.matrix_world = matrix
+    return _link(scene, obj)
+
+
+def _box_geometry(center, size):
+    """8 vertices and 6 outward quads of an axis-aligned box."""
+    c = np.asarray(center, float)
+    h = np.asarray(size, float) / 2.0
+    signs = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                      [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float)
+    verts = c + signs * h
+    faces = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    return verts, faces
+
+
+def _add_box(scene, name, center, size, material):
+    verts, faces = _box_geometry(center, size)
+    return _mesh_object(scene, name, verts, faces, material)
+
+
+def _add_ground(scene, half_size=20.0, material=None):
+    """The receiver: a single quad at z = 0, normal +Z, big enough to fill every camera view."""
+    material = material or diffuse_material("GroundMaterial", (GROUND_ALBEDO,) * 3)
+    s = half_size
+    return _mesh_object(scene, GROUND_NAME, [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)],
+                        [(0, 1, 2, 3)], material)
+
+
+def _look_at_matrix(location, target, up=(0.0, 0.0, 1.0)) -> Matrix:
+    """World matrix of an object at `location` whose local -Z points at `target` (local Y towards `up`)."""
+    loc = Vector(location)
+    forward = (Vector(target) - loc).normalized()
+    upv = Vector(up).normalized()
+    if abs(forward.dot(upv)) > 0.999:               # looking (almost) along `up`: use another up
+        upv = Vector((0.0, 1.0, 0.0)) if abs(forward.y) < 0.9 else Vector((0.0, 0.0, 1.0))
+    z = -forward
+    x = upv.cross(z).normalized()
+    y = z.cross(x)
+    rot = Matrix((x, y, z)).transposed()            # columns: local X, Y, Z in world space
+    m = rot.to_4x4()
+    m.translation = loc
+    return m
+
+
+def _add_camera(scene, location, target, lens=35.0, up=(0.0, 0.0, 1.0)):
+    cam = bpy.data.cameras.new(CAMERA_NAME)
+    cam.lens = lens
+    cam.sensor_fit = "AUTO"
+    cam.sensor_width = 36.0
+    cam.clip_start = 0.05
+    cam.clip_end = 200.0
+    obj = _link(scene, bpy.data.objects.new(CAMERA_NAME, cam))
+    obj.matrix_world = _look_at_matrix(location, target, up)
+    scene.camera = obj
+    return obj
+
+
+def _irradiance_per_watt(matrix: Matrix, size_x: float, size_y: float, point, normal, n: int = 96) -> float:
+    """Irradiance (W/m²) at `point` (surface `normal`) from an unoccluded rectangular AREA light of 1 W.
+
+    Blender's area light is a one-sided Lambertian emitter of radiance P / (pi * A) (checked against a
+    Cycles render of a small light: E = P / (pi d^2) straight below it). Integrated with an n x n midpoint
+    rule over the light's surface.
+    """
+    m = np.array(matrix, dtype=float)
+    ax, ay, az = m[:3, 0], m[:3, 1], m[:3, 2]
+    ax = ax / np.linalg.norm(ax)
+    ay = ay / np.linalg.norm(ay)
+    emit = -az / np.linalg.norm(az)
+    centre = m[:3, 3]
+    u = ((np.arange(n) + 0.5) / n - 0.5) * size_x
+    v = ((np.arange(n) + 0.5) / n - 0.5) * size_y
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    q = centre + uu[..., None] * ax + vv[..., None] * ay          # (n, n, 3) points on the light
+    d = np.asarray(point, float) - q                               # light -> receiver
+    r2 = np.einsum("...i,...i", d, d)
+    r = np.sqrt(r2)
+    cos_l = np.clip(np.einsum("...i,i", d, emit) / r, 0.0, None)
+    cos_r = np.clip(-np.einsum("...i,i", d, np.asarray(normal, float)) / r, 0.0, None)
+    area = size_x * size_y
+    radiance_per_watt = 1.0 / (math.pi * area)
+    dA = area / (n * n)
+    return float(np.sum(radiance_per_watt * cos_l * cos_r / r2) * dA)
+
+
+def _add_area_light(scene, location, target, size, *, reference_point=(0.0, 0.0, 0.0),
+                    reference_normal=(0.0, 0.0, 1.0), size_y=None, radiance=TARGET_RADIANCE):
+    """A square (or rectangular) AREA light at `location` aimed at `target`.
+
+    Its power is chosen so that an unshadowed Lambertian surface of albedo GROUND_ALBEDO at
+    `reference_point` has outgoing radiance `radiance`.
+    """
+    data = bpy.data.lights.new(LIGHT_NAME, "AREA")
+    if size_y is None:
+        data.shape = "SQUARE"
+        data.size = size
+        sy = size
+    else:
+        data.shape = "RECTANGLE"
+        data.size = size
+        data.size_y = size_y
+        sy = size_y
+    data.color = (1.0, 1.0, 1.0)
+    data.use_shadow = True
+    data.spread = math.pi
+    if hasattr(data, "normalize"):
+        data.normalize = True
+    if hasattr(data, "exposure"):
+        data.exposure = 0.0
+    obj = _link(scene, bpy.data.objects.new(LIGHT_NAME, data))
+    obj.matrix_world = _look_at_matrix(location, target, up=(0.0, 1.0, 0.0))
+    e = _irradiance_per_watt(obj.matrix_world, size, sy, reference_point, reference_normal)
+    data.energy = radiance / (GROUND_ALBEDO / math.pi * e)
+    return obj
+
+
+# --------------------------------------------------------------------------------------------------
+# The scenes
+# --------------------------------------------------------------------------------------------------
+
+def _build_plane(scene):
+    """A 1 m square plate parallel to a 1.5 m square light, halfway-ish down: the shadow is nearly all
+    penumbra (umbra only |x|, |y| < 0.38 m, penumbra out to 1.09 m) -- Atty et al.'s worst case."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    s = 0.5
+    _mesh_object(scene, "Occluder", [(-s, -s, 0.8), (s, -s, 0.8), (s, s, 0.8), (-s, s, 0.8)],
+                 [(0, 1, 2, 3)], occ)
+    _add_area_light(scene, (0, 0, 2.5), (0, 0, 0), 1.5, reference_point=(1.2, 0.0, 0.0))
+    _add_camera(scene, (0.0, -2.1, 2.0), (0.0, -0.2, 0.0), lens=35)
+
+
+def _build_suzanne(scene):
+    """Suzanne (subdivision level 1, smooth) floating over the ground."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    me = bpy.data.meshes.new("Suzanne")
+    bm = bmesh.new()
+    bmesh.ops.create_monkey(bm)
+    bm.to_mesh(me)
+    bm.free()
+    me.shade_smooth()
+    me.materials.append(occ)
+    obj = _link(scene, bpy.data.objects.new("Suzanne", me))
+    # Face the monkey upwards a little (towards the light) and float it 1.2 m above the ground.
+    obj.matrix_world = (Matrix.Translation((0.0, 0.0, 1.2)) @ Matrix.Rotation(math.radians(-35), 4, "X")
+                        @ Matrix.Scale(0.7, 4))
+    mod = obj.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels = 1
+    mod.render_levels = 1
+    _add_area_light(scene, (0, 0, 3.5), (0, 0, 0), 2.0, reference_point=(1.5, 0.0, 0.0))
+    _add_camera(scene, (0.5, -3.0, 2.8), (0.0, 0.0, 0.3), lens=35)
+
+
+def _build_balls(scene):
+    """3x3x3 UV spheres on a lattice tilted by (25, 15, 10) degrees, so that seen from the light the
+    balls of different layers overlap partially: overlapping occluders at different depths."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    me = bpy.data.meshes.new("Ball")
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=0.2)
+    bm.to_mesh(me)
+    bm.free()
+    me.shade_smooth()
+    me.materials.append(occ)
+    spacing = 0.5
+    tilt = Euler((math.radians(25), math.radians(15), math.radians(10)), "XYZ").to_matrix()
+    centre = Vector((0.0, 0.0, 1.3))
+    for k in range(3):                  # layers, bottom to top
+        for j in range(3):
+            for i in range(3):
+                obj = _link(scene, bpy.data.objects.new(f"Ball.{k}{j}{i}", me))
+                obj.location = centre + tilt @ (Vector((i - 1, j - 1, k - 1)) * spacing)
+    # Light a little behind the lattice so the shadow falls in front of it, towards the camera.
+    _add_area_light(scene, (-0.6, 1.2, 4.0), (-0.6, 1.2, 0.0), 1.5, reference_point=(-0.6, 1.2, 0.0))
+    _add_camera(scene, (0.6, -3.4, 3.2), (0.3, -0.6, 0.2), lens=35)
+
+
+def _build_silhouette(scene):
+    """Two stacked plates whose silhouette depends on where on the light you stand.
+
+    Light: 2 m square at z = 4 (corners at x, y = +-1). Upper plate: 1.2 m square at z = 2, centred.
+    Lower plate: a bar at z = 1 spanning x in [0.3, 0.85], y in [-0.85, 0.85].
+    From the light centre the upper plate hides everything at z = 1 within |x|, |y| < 0.6 * 3/2 = 0.9,
+    so the lower bar is completely hidden and the silhouette is just a square. From the light corner
+    (1, 1, 4) the upper plate hides only x, y in [-1.4, 0.4] at z = 1, so the part of the bar with
+    x > 0.4 pokes out and the silhouette becomes an L. Techniques that take one silhouette (or one shadow
+    map) from the light centre miss the lower plate's contribution to the penumbra on the +x side.
+    """
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    lower = diffuse_material("LowerOccluderMaterial", (0.25, 0.45, 0.8))
+    s = 0.6
+    _mesh_object(scene, "Occluder", [(-s, -s, 2.0), (s, -s, 2.0), (s, s, 2.0), (-s, s, 2.0)],
+                 [(0, 1, 2, 3)], occ)
+    _mesh_object(scene, "LowerOccluder",
+                 [(0.3, -0.85, 1.0), (0.85, -0.85, 1.0), (0.85, 0.85, 1.0), (0.3, 0.85, 1.0)],
+                 [(0, 1, 2, 3)], lower)
+    _add_area_light(scene, (0, 0, 4.0), (0, 0, 0), 2.0, reference_point=(1.8, 0.0, 0.0))
+    _add_camera(scene, (0.3, -3.6, 2.4), (0.2, -0.2, 0.0), lens=30)
+
+
+def _build_contact(scene):
+    """A cube and a cylinder resting on the ground (bottoms exactly at z = 0): contact shadows, from
+    hard at the contact line to soft further away. The light is off to one side."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    verts, faces = _box_geometry((0.0, 0.0, 0.5), (1.0, 1.0, 1.0))
+    cube = _mesh_object(scene, "Cube", verts, faces, occ)
+    cube.matrix_world = Matrix.Translation((-0.4, 0.0, 0.0)) @ Matrix.Rotation(math.radians(30), 4, "Z")
+    me = bpy.data.meshes.new("Cylinder")
+    bm = bmesh.new()
+    bmesh.ops.create_cone(bm, cap_ends=True, cap_tris=False, segments=48, radius1=0.3, radius2=0.3,
+                          depth=1.4, matrix=Matrix.Translation((0.0, 0.0, 0.7)))
+    bm.to_mesh(me)
+    bm.free()
+    me.materials.append(occ)
+    cyl = _link(scene, bpy.data.objects.new("Cylinder", me))
+    cyl.location = (0.7, 0.8, 0.0)
+    _add_area_light(scene, (-1.6, -0.6, 3.2), (0.0, 0.2, 0.0), 1.0, reference_point=(-0.4, -0.8, 0.0))
+    _add_camera(scene, (2.4, -2.6, 2.2), (0.5, 0.4, 0.2), lens=35)
+
+
+def _bars(axis: int, count: int, pitch: float, width: float, length: float, z: float):
+    """Vertices and quads of `count` thin square-section bars along world axis `axis` (0 = x, 1 = y)."""
+    offsets = (np.arange(count) - (count - 1) / 2.0) * pitch
+    verts, faces = [], []
+    for o in offsets:
+        centre = [0.0, 0.0, z]
+        size = [width, width, width]
+        centre[1 - axis] = o
+        size[axis] = length
+        v, f = _box_geometry(centre, size)
+        base = len(verts)
+        verts.extend(v)
+        faces.extend(tuple(i + base for i in q) for q in f)
+    return verts, faces
+
+
+def _build_thin(scene):
+    """A 2 m x 2 m woven grid of 2 mm bars at 1 cm pitch, 0.6 m above the ground (bars thinner than a
+    texel of a 1024^2 shadow map over the 4 m region: 3.9 mm). Each direction covers 20 % of the area, so
+    the exact shadow is a smooth ~36 % darkening with soft edges; undersampled shadow maps show moire
+    or miss the bars."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    width, pitch, length, count = 0.002, 0.01, 2.0, 200
+    vx, fx = _bars(0, count, pitch, width, length, 0.6)
+    vy, fy = _bars(1, count, pitch, width, length, 0.6 + width)
+    faces = fx + [tuple(i + len(vx) for i in q) for q in fy]
+    _mesh_object(scene, "Fence", vx + vy, faces, occ)
+    _add_area_light(scene, (0, 0, 3.0), (0, 0, 0), 1.0)
+    _add_camera(scene, (0.0, -3.0, 2.6), (0.0, -0.2, 0.0), lens=35)
+
+
+def _city_mesh(name: str, nx: int, ny: int, pitch: float, footprint: float, seed: int) -> bpy.types.Mesh:
+    """nx * ny boxes (4 walls + roof, no floor: 10 triangles each) on a regular grid, heights seeded."""
+    rng = np.random.default_rng(seed)
+    heights = np.exp(rng.normal(math.log(0.18), 0.55, size=(ny, nx))).clip(0.04, 0.9)
+    jitter = rng.uniform(-0.15, 0.15, size=(ny, nx, 2)) * (pitch - footprint)
+    ix, iy = np.meshgrid(np.arange(nx), np.arange(ny))
+    cx = (ix - (nx - 1) / 2.0) * pitch + jitter[..., 0]
+    cy = (iy - (ny - 1) / 2.0) * pitch + jitter[..., 1]
+    n = nx * ny
+    cx, cy, h = cx.ravel(), cy.ravel(), heights.ravel()
+    half = footprint / 2.0
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * half      # counter-clockwise
+    verts = np.zeros((n, 8, 3), np.float32)
+    verts[:, :4, 0] = cx[:, None] + corners[:, 0]
+    verts[:, :4, 1] = cy[:, None] + corners[:, 1]
+    verts[:, 4:, :2] = verts[:, :4, :2]
+    verts[:, 4:, 2] = h[:, None]
+    quads = np.array([[4, 5, 6, 7],                                          # roof
+                      [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]], np.int32)  # walls
+    loops = (quads[None, :, :] + 8 * np.arange(n, dtype=np.int32)[:, None, None]).ravel()
+    nquads = n * len(quads)
+
+    me = bpy.data.meshes.new(name)
+    me.vertices.add(n * 8)
+    me.vertices.foreach_set("co", verts.ravel())
+    me.loops.add(loops.size)
+    me.loops.foreach_set("vertex_index", loops)
+    me.polygons.add(nquads)
+    me.polygons.foreach_set("loop_start", np.arange(0, 4 * nquads, 4, dtype=np.int32))
+    me.update(calc_edges=True)
+    me.shade_flat()
+    return me
+
+
+def _build_city(scene):
+    """150 x 150 boxes of seeded heights (225k triangles) in a single mesh over a 12 m square."""
+    _add_ground(scene)
+    me = _city_mesh("City", 150, 150, pitch=0.08, footprint=0.055, seed=20240607)
+    me.materials.append(diffuse_material("CityMaterial", (0.7, 0.7, 0.75)))
+    _link(scene, bpy.data.objects.new("City", me))
+    _add_area_light(scene, (0, 0, 5.0), (0, 0, 0), 2.0)
+    _add_camera(scene, (0.0, -1.9, 1.5), (0.0, -0.3, 0.0), lens=35)
+
+
+def _build_grazing(scene):
+    """Light at 5 deg elevation, 20 m away: its rays meet the ground at about 85 deg from the normal.
+    A post and a floating bar throw long, stretched shadows; the light's 2.5 m extent spans ~7 deg of
+    elevation, so the penumbra along the shadow is very long. (Far away so the ground's radiance, which
+    falls like 1/r^3 at grazing incidence, varies by less than 2x across the frame.)"""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    _add_box(scene, "Post", (0.0, 0.0, 0.25), (0.2, 0.2, 0.5), occ)
+    _add_box(scene, "Occluder", (0.0, 0.8, 0.35), (0.15, 0.6, 0.1), occ)
+    dist = 20.0
+    elev = math.radians(5.0)
+    light_pos = (-dist * math.cos(elev), 0.0, dist * math.sin(elev))
+    _add_area_light(scene, light_pos, (0.0, 0.0, 0.0), 2.5, reference_point=(1.6, -0.6, 0.0))
+    _add_camera(scene, (1.6, -1.4, 4.0), (1.6, 0.3, 0.0), lens=35)
+
+
+Builder = Callable[[bpy.types.Scene], None]
+
+SCENES: "OrderedDict[str, tuple[Builder, str]]" = OrderedDict([
+    ("plane", (_build_plane, "square plate parallel to a square area light: almost all penumbra")),
+    ("suzanne", (_build_suzanne, "Suzanne (subdivided, smooth) floating over the ground")),
+    ("balls", (_build_balls, "3x3x3 grid of spheres, layers offset: overlapping occluders")),
+    ("silhouette", (_build_silhouette, "stacked offset plates: silhouette differs from light centre and corners")),
+    ("contact", (_build_contact, "cube and cylinder resting on the ground: contact shadows")),
+    ("thin", (_build_thin, "woven grid of 2 mm bars, thinner than a 1024^2 shadow-map texel")),
+    ("city", (_build_city, "150x150 seeded boxes, 225k triangles in one mesh")),
+    ("grazing", (_build_grazing, "light at 5 deg elevation: rays hit the ground at ~85 deg")),
+])
+
+
+def list_scenes() -> list[tuple[str, str]]:
+    """(name, one-line description) of every built-in scene, in order."""
+    return [(name, desc) for name, (_, desc) in SCENES.items()]
+
+
+def build(name: str, *, resolution=(256, 256)) -> bpy.types.Scene:
+    """Reset Blender to an empty file, build scene `name` into bpy.context.scene and return it."""
+    if name not in SCENES:
+        raise ValueError(f"unknown scene {name!r}; valid scenes: {', '.join(SCENES)}")
+    builder, _ = SCENES[name]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    _setup_scene(scene, resolution)
+    builder(scene)
+    bpy.context.view_layer.update()
+    return scene
