@@ -87,91 +87,139 @@ def _box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
-def _clip_segments_to_box(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Slab-clip segments a→b (N,3) to the box; return the endpoints of the surviving pieces (M,3)."""
-    d = b - a
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t0 = (lo - a) / d
-        t1 = (hi - a) / d
-    tmin = np.where(np.abs(d) < 1e-30, np.where((a >= lo) & (a <= hi), -np.inf, np.inf), np.minimum(t0, t1))
-    tmax = np.where(np.abs(d) < 1e-30, np.where((a >= lo) & (a <= hi), np.inf, -np.inf), np.maximum(t0, t1))
-    enter = np.clip(tmin.max(axis=1), 0.0, 1.0)
-    leave = np.clip(tmax.min(axis=1), 0.0, 1.0)
-    keep = enter <= leave
-    pts = np.concatenate([a[keep] + d[keep] * enter[keep, None], a[keep] + d[keep] * leave[keep, None]])
-    return pts
-
-
 def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[np.ndarray, np.ndarray] | None,
         map_size: int, *, origin_local: np.ndarray | None = None, margin: float = 0.02) -> LightView:
-    """Fit a light view to the receiver bounds (world AABB lo, hi) and caster bounds.
+    """Fit a light view to the receiver bounds (world AABB lo, hi) and the caster bounds.
 
-    `origin_local` moves the eye to a point of the light (a REFERENCE sample); the frame keeps its axes.
+    The window is the part of the receivers a caster can shadow (the casters' window widened by how far the
+    light's extent reaches past them), plus the occluders those receivers can see the light through. Both
+    are measured in window units: tangents from the eye (perspective) or metres (sun). `origin_local` moves
+    the eye to a point of the light (a REFERENCE sample); the frame keeps its axes and the light has no
+    extent left around that eye.
     """
     r_lo, r_hi = (np.asarray(v, float) for v in receivers)
-    centre = (r_lo + r_hi) / 2.0
-    world_to_local = light_frame(light, centre)
+    world_to_local = light_frame(light, (r_lo + r_hi) / 2.0)
+    half = np.max(np.abs(light_extent_local(light)[:, :2]), axis=0)
     if origin_local is not None:
         shift = np.eye(4)
         shift[:3, 3] = -np.asarray(origin_local, float)
         world_to_local = shift @ world_to_local
-        sources = np.asarray(origin_local, float)[None, :] * 0.0     # the eye is the only source
-    else:
-        sources = light_extent_local(light)
-    local_to_world = np.linalg.inv(world_to_local)
+        half = np.zeros(2)
+    if casters is None:
+        casters = receivers
+    c_lo, c_hi = (np.asarray(v, float) for v in casters)
+    rec = _to_local(world_to_local, _box_corners(r_lo, r_hi))
+    cas = _to_local(world_to_local, _box_corners(c_lo, c_hi))
+    extent = max(float(np.linalg.norm(r_hi - r_lo)), float(np.linalg.norm(c_hi - c_lo)), 1e-9)
+    is_sun = light.kind == SUN
 
-    rec = _box_corners(r_lo, r_hi)
-    pts = [rec]
-    if casters is not None:
-        c_lo, c_hi = (np.asarray(v, float) for v in casters)
-        if light.kind == SUN:
-            # Occluders lie up-sun of receivers: sweep receiver corners towards the sun across the casters.
-            toward = -light.direction * (np.linalg.norm(c_hi - c_lo) + np.linalg.norm(r_hi - r_lo) + 1.0)
-            a, b = rec, rec + toward
-        else:
-            src_world = (local_to_world @ np.c_[sources, np.ones(len(sources))].T).T[:, :3]
-            a = np.repeat(rec, len(src_world), axis=0)
-            b = np.tile(src_world, (len(rec), 1))
-        pts.append(_clip_segments_to_box(a, b, c_lo, c_hi))
-    pts = np.concatenate(pts)
-    local = (world_to_local @ np.c_[pts, np.ones(len(pts))].T).T[:, :3]
-    depth = -local[:, 2]
-    extent = float(np.linalg.norm(r_hi - r_lo)) + 1e-9
-    if casters is not None:
-        extent = max(extent, float(np.linalg.norm(casters[1] - casters[0])))
-
-    if light.kind == SUN:
-        x0, y0 = local[:, 0].min(), local[:, 1].min()
-        x1, y1 = local[:, 0].max(), local[:, 1].max()
-        pad = max(x1 - x0, y1 - y0, 1e-6 * extent) * margin
-        window = (x0 - pad, x1 + pad, y0 - pad, y1 + pad)
-        near, far = depth.min(), depth.max()
-        pad_z = max(far - near, 1e-6 * extent) * 0.01
-        near, far = near - pad_z, far + pad_z
-        clamped = False
+    if is_sun:
+        r_depth, c_depth = -rec[:, 2], -cas[:, 2]
+        win_r = _bounds(rec[:, :2])
+        win_c = _bounds(cas[:, :2])
+        grow = half * max(r_depth.max() - c_depth.min(), 0.0)      # tan(angle/2) · depth gap
+        limit = np.inf
     else:
         near_floor = 1e-5 * extent
-        front = depth > near_floor
-        if not front.any():
-            # Nothing in front of the light: a degenerate view that no receiver uses.
-            local, depth = np.array([[0.0, 0.0, -1.0]]), np.array([1.0])
-            front = np.array([True])
-        tan_x = local[front, 0] / depth[front]
-        tan_y = local[front, 1] / depth[front]
         limit = np.tan(MAX_HALF_ANGLE)
-        clamped = bool((~front).any() and (depth[: len(rec)] <= near_floor).any()) or \
-            bool(np.abs(tan_x).max() > limit or np.abs(tan_y).max() > limit)
-        tan_x, tan_y = np.clip(tan_x, -limit, limit), np.clip(tan_y, -limit, limit)
-        x0, x1, y0, y1 = tan_x.min(), tan_x.max(), tan_y.min(), tan_y.max()
-        pad = max(x1 - x0, y1 - y0, 1e-6) * margin
-        window = (x0 - pad, x1 + pad, y0 - pad, y1 + pad)
-        near = max(depth[front].min() * 0.98, near_floor)
-        far = depth[front].max() * 1.02 + near_floor
+        win_r, r_depth = _tangent_window(rec, near_floor)
+        win_c, c_depth = _tangent_window(cas, near_floor)
+        z_c = max(c_depth.min(), near_floor)
+        grow = half * max(1.0 / z_c - 1.0 / max(r_depth.max(), z_c), 0.0)   # h · (1/z_occ − 1/z_rec)
+    shadowable = _intersect(win_r, _widen(win_c, grow))
+    occluders = _intersect(_widen(shadowable, grow), win_c)
+    window = _union(shadowable, occluders)
+    if not np.all(np.isfinite(window)) or window[1] <= window[0] or window[3] <= window[2]:
+        window = _intersect(_union(win_r, win_c), (-limit, limit, -limit, limit))
+    clamped = bool(np.abs(np.asarray(shadowable)).max() > limit)
+    window = np.clip(window, -limit, limit)
+    pad = max(window[1] - window[0], window[3] - window[2], 1e-9) * margin
+    window = (window[0] - pad, window[1] + pad, window[2] - pad, window[3] + pad)
+
+    if is_sun:
+        near, far = c_depth.min(), max(r_depth.max(), c_depth.max())
+        pad_z = max(far - near, 1e-6 * extent) * 0.01
+        near, far = near - pad_z, far + pad_z
+    else:
+        near = max(min(c_depth.min(), r_depth.min()) * 0.98, near_floor)
+        far = max(r_depth.max(), c_depth.max()) * 1.02 + near_floor
 
     width, height = _map_shape(window, map_size)
-    proj = ortho(window, near, far) if light.kind == SUN else frustum(window, near, far)
-    return LightView(world_to_local, proj, width, height, float(near), float(far), light.kind == SUN,
+    proj = ortho(window, near, far) if is_sun else frustum(window, near, far)
+    return LightView(world_to_local, proj, width, height, float(near), float(far), is_sun,
                      tuple(float(v) for v in window), clamped)
+
+
+def _to_local(world_to_local: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    return (world_to_local @ np.c_[pts, np.ones(len(pts))].T).T[:, :3]
+
+
+def _bounds(xy: np.ndarray) -> tuple:
+    return (xy[:, 0].min(), xy[:, 0].max(), xy[:, 1].min(), xy[:, 1].max())
+
+
+def _tangent_window(local: np.ndarray, near_floor: float):
+    """Tangent bounds of a box's corners seen from the eye, and their depths. A box that reaches to or
+    behind the light plane has no bound on that side: infinite there."""
+    depth = -local[:, 2]
+    front = depth > near_floor
+    if not front.any():
+        return (np.inf, -np.inf, np.inf, -np.inf), np.array([near_floor])
+    t = local[front, :2] / depth[front, None]
+    win = list(_bounds(t))
+    if not front.all():
+        # The box straddles the light plane: directions towards its far side are unbounded.
+        behind = local[~front, :2]
+        for axis in (0, 1):
+            if (behind[:, axis] < 0).any() or not front.any():
+                win[2 * axis] = -np.inf
+            if (behind[:, axis] > 0).any():
+                win[2 * axis + 1] = np.inf
+            if np.allclose(behind[:, axis], 0.0):
+                win[2 * axis], win[2 * axis + 1] = -np.inf, np.inf
+    return tuple(win), depth[front]
+
+
+def _widen(win, grow) -> tuple:
+    return (win[0] - grow[0], win[1] + grow[0], win[2] - grow[1], win[3] + grow[1])
+
+
+def _intersect(a, b) -> tuple:
+    return (max(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), min(a[3], b[3]))
+
+
+def _union(a, b) -> tuple:
+    return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
+
+
+def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np.ndarray,
+                            receivers: tuple) -> tuple | None:
+    """World AABB of the caster objects that can shadow the lit receivers, or None.
+
+    An axis-aligned flat caster (a ground plane) shadows only what lies beyond its plane as seen from the
+    light; when no receiver does, it is left out, so a large floor does not stretch every light's map.
+    """
+    r_corners = _box_corners(*receivers)
+    keep = []
+    for index in np.flatnonzero(casters):
+        lo, hi = object_bounds[index]
+        if not np.all(np.isfinite(lo)):
+            continue
+        size = hi - lo
+        axis = int(np.argmin(size))
+        if size[axis] <= 1e-6 * max(float(size.max()), 1e-30):
+            plane = (lo[axis] + hi[axis]) / 2.0
+            if light.kind == SUN:
+                light_side = -np.sign(light.direction[axis])
+            else:
+                light_side = np.sign(light.position[axis] - plane)
+            tol = 1e-6 * max(float(np.abs(r_corners).max()), 1.0)
+            if light_side != 0 and np.all((r_corners[:, axis] - plane) * light_side >= -tol):
+                continue
+        keep.append(index)
+    if not keep:
+        return None
+    return object_bounds[keep, 0].min(axis=0), object_bounds[keep, 1].max(axis=0)
 
 
 def _map_shape(window, size: int) -> tuple[int, int]:

@@ -84,13 +84,14 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
     with t.stage("readback"):
         position = frame.read(frame.gbuffer["g_position"])
     covered = position[..., 3] > 0.0
-    caster_mask = snap.caster_mask()
-    casters = snap.bounds(caster_mask) if caster_mask.any() else None
+    caster_objects = np.array([o.caster for o in snap.objects], bool)
+    object_bounds = snap.object_bounds()
+    has_casters = bool(snap.caster_mask().any())
     stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
              "covered_pixels": int(covered.sum()), "technique": technique.identifier}
     if not snap.lights:
         warnings.append(f"Scene '{snap.name}' has no lights: Combined is black and Visibility is 1.")
-    if casters is None and snap.lights:
+    if not has_casters and snap.lights:
         warnings.append(f"Scene '{snap.name}' has no shadow casters: every light is unshadowed.")
 
     for index, light in enumerate(snap.lights):
@@ -104,12 +105,15 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
         if not lit.any():
             stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
             continue
-        if not light.casts_shadow or casters is None:
-            visibility.write(ones)
+        pts = position[lit][:, :3]
+        receivers = (pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64))
+        casters = None
+        if light.casts_shadow and has_casters:
+            casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers)
+        if casters is None:
+            visibility.write(ones)              # nothing can shadow what this light reaches
             stats["lights_unshadowed"] += 1
         else:
-            pts = position[lit][:, :3]
-            receivers = (pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64))
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
             if view.clamped:

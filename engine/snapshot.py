@@ -124,6 +124,20 @@ class SceneSnapshot:
         flat = pos.reshape(-1, 3)
         return flat.min(axis=0).astype(np.float64), flat.max(axis=0).astype(np.float64)
 
+    def object_bounds(self) -> np.ndarray:
+        """(O, 2, 3) float64: per-object AABB (lo, hi); +inf/-inf for objects without triangles."""
+        out = np.empty((len(self.objects), 2, 3))
+        out[:, 0], out[:, 1] = np.inf, -np.inf
+        if self.triangle_count == 0:
+            return out
+        lo, hi = self.positions.min(axis=1), self.positions.max(axis=1)
+        # Triangles arrive in runs per object: reduce each run, then fold runs of the same object.
+        starts = np.flatnonzero(np.r_[True, self.object_id[1:] != self.object_id[:-1]])
+        ids = self.object_id[starts]
+        np.minimum.at(out[:, 0], ids, np.minimum.reduceat(lo, starts))
+        np.maximum.at(out[:, 1], ids, np.maximum.reduceat(hi, starts))
+        return out
+
     def caster_mask(self) -> np.ndarray:
         flags = np.array([o.caster for o in self.objects] or [False], dtype=bool)
         return flags[self.object_id] if self.triangle_count else np.zeros(0, dtype=bool)

@@ -31,18 +31,46 @@ float texel_world(float depth) {
     return u_light_ortho == 1 ? u_texel_tan : u_texel_tan * depth;
 }
 
-// Receiver in light space, pushed off its surface along the geometric normal (normal-offset bias); also
-// returns the slope-scaled depth bias to subtract before comparing with the map.
-vec3 biased_receiver(vec3 p, vec3 ng, out float depth_bias) {
+// A receiver as the shadow-map techniques see it: its light-local position pushed off the surface along
+// the geometric normal (normal-offset bias), that normal in light space, its map coordinates (texels,
+// depth) and the slope-scaled depth bias to subtract before comparing with the map.
+struct Receiver {
+    vec3 local;
+    vec3 normal;
+    vec3 map;
+    float bias;
+};
+
+Receiver make_receiver(vec3 p, vec3 ng) {
+    Receiver r;
     vec3 l = light_local(p);
-    vec3 n = mat3(u_light_view) * ng;
+    r.normal = mat3(u_light_view) * ng;
     vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l);
-    float cos_t = clamp(abs(dot(n, to_light)), 1e-3, 1.0);
+    float cos_t = clamp(abs(dot(r.normal, to_light)), 1e-3, 1.0);
     float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
     float texel = texel_world(max(-l.z, 0.0));
-    l += n * (u_normal_offset * texel);
-    depth_bias = u_bias * texel * (0.5 + tan_t);
-    return l;
+    r.local = l + r.normal * (u_normal_offset * texel);
+    r.map = map_coords(r.local);
+    r.bias = u_bias * texel * (0.5 + tan_t);
+    return r;
+}
+
+// Depth of the receiver's own plane under a map position, less the bias: what a texel there must be
+// nearer than to shadow the receiver. Following the plane instead of using the centre depth keeps a flat
+// receiver from shadowing itself across a wide kernel (receiver-plane depth bias).
+float receiver_depth_at(Receiver r, vec2 map_pos) {
+    vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
+    float np = dot(r.normal, r.local);
+    float z = r.map.z;
+    if (u_light_ortho == 1) {
+        if (abs(r.normal.z) > 1e-4) z = (r.normal.x * w.x + r.normal.y * w.y - np) / r.normal.z;
+    } else {
+        float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
+        if (abs(den) > 1e-6 && np / den > 0.0) z = np / den;
+    }
+    // Far from the centre a steep plane can run away: never trust it beyond twice the centre's distance.
+    z = clamp(z, 0.5 * r.map.z, 2.0 * r.map.z);
+    return z - r.bias;
 }
 
 // Hard comparison against one texel: 1 lit, 0 shadowed. Outside the map counts as lit.

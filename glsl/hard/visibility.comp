@@ -10,10 +10,8 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0;
     if (pixel_lit(px)) {
-        float bias;
-        vec3 l = biased_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz, bias);
-        vec3 m = map_coords(l);
-        v = map_lit(u_depth_map, ivec2(floor(m.xy)), m.z - bias);
+        Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+        v = map_lit(u_depth_map, ivec2(floor(r.map.xy)), r.map.z - r.bias);
     }
     imageStore(u_visibility, px, vec4(v));
 }

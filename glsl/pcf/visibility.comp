@@ -12,15 +12,14 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0;
     if (pixel_lit(px)) {
-        float bias;
-        vec3 l = biased_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz, bias);
-        vec3 m = map_coords(l);
+        Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
         float step_size = u_taps > 1 ? 2.0 * u_radius / float(u_taps - 1) : 0.0;
         float sum = 0.0;
         for (int j = 0; j < u_taps; ++j)
             for (int i = 0; i < u_taps; ++i) {
                 vec2 offset = (vec2(i, j) - 0.5 * float(u_taps - 1)) * step_size;
-                sum += map_lit_bilinear(u_depth_map, m.xy + offset, m.z - bias);
+                vec2 q = r.map.xy + offset;
+                sum += map_lit_bilinear(u_depth_map, q, receiver_depth_at(r, q));
             }
         v = sum / float(u_taps * u_taps);
     }

@@ -25,29 +25,27 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0;
     if (pixel_lit(px)) {
-        float bias;
-        vec3 l = biased_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz, bias);
-        vec3 m = map_coords(l);
-        float d = m.z - bias;
+        Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+        float d = r.map.z - r.bias;
         float noise = pixel_noise(px);
         // 1. Blocker search over the region the light can be seen through at the near plane.
         vec2 search = max(penumbra_texels(u_light_depth_range.x, d), vec2(0.5));
         float blocker_sum = 0.0;
         int blockers = 0;
         for (int i = 0; i < u_blocker_samples; ++i) {
-            vec2 q = m.xy + kernel_point(i, u_blocker_samples, u_light_round, noise) * search;
+            vec2 q = r.map.xy + kernel_point(i, u_blocker_samples, u_light_round, noise) * search;
             ivec2 t = ivec2(floor(q));
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;
             float z = texelFetch(u_depth_map, t, 0).r;
-            if (z < d) { blocker_sum += z; ++blockers; }
+            if (z < receiver_depth_at(r, q)) { blocker_sum += z; ++blockers; }
         }
         if (blockers > 0) {
             // 2. Penumbra size from the mean blocker depth; 3. PCF over it.
             vec2 radius = max(penumbra_texels(blocker_sum / float(blockers), d), vec2(0.5));
             float sum = 0.0;
             for (int i = 0; i < u_filter_samples; ++i) {
-                vec2 q = m.xy + kernel_point(i, u_filter_samples, u_light_round, 1.0 - noise) * radius;
-                sum += map_lit_bilinear(u_depth_map, q, d);
+                vec2 q = r.map.xy + kernel_point(i, u_filter_samples, u_light_round, 1.0 - noise) * radius;
+                sum += map_lit_bilinear(u_depth_map, q, receiver_depth_at(r, q));
             }
             v = sum / float(u_filter_samples);
         }

@@ -14,10 +14,8 @@ void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px) || !pixel_lit(px)) return;
     vec3 p = texelFetch(g_position, px, 0).xyz;
-    float bias;
-    vec3 l = biased_receiver(p, texelFetch(g_geometric, px, 0).xyz, bias);
-    vec3 m = map_coords(l);
-    float v = map_lit(u_depth_map, ivec2(floor(m.xy)), m.z - bias);
+    Receiver r = make_receiver(p, texelFetch(g_geometric, px, 0).xyz);
+    float v = map_lit(u_depth_map, ivec2(floor(r.map.xy)), r.map.z - r.bias);
     float w = 1.0;
     if (u_weight_mode > 0) {
         vec3 to_sample = u_sample_position - p;
