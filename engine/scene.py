@@ -1,0 +1,539 @@
+"""Blender depsgraph -> `SceneSnapshot`. The only module that reads scene data through bpy.
+
+Geometry comes from `depsgraph.object_instances`, so collection instances, geometry-nodes instances,
+particles, curves, text, surfaces and metaballs all arrive as evaluated meshes (Blender converts the
+latter into MESH instances itself). Each distinct evaluated mesh is read once with `foreach_get`, then
+every instance of it is transformed in one batched numpy step.
+
+Behaviour that mirrors Cycles (intern/cycles/blender/light.cpp, scene/light.cpp):
+  * point/spot radius is `shadow_soft_size` as-is: Cycles does not scale it by the object transform;
+  * area-light extents are `size * |local axis|` (object scale applies), spot cones keep the object scale
+    in `spot_scale`;
+  * light colour is `color * temperature_color` when `use_temperature` is on (Blender's own blackbody
+    value, read from RNA), power is `energy * 2**exposure`;
+  * a light with "Normalize" off is folded into `power` by multiplying with its emitting area, which is
+    what Cycles effectively does (it skips the 1/area factor), so `power` keeps meaning watts.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .snapshot import AREA, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Camera, Light, ObjectInfo, SceneSnapshot
+
+GREY = (0.8, 0.8, 0.8)
+# A triangle is dropped when its area is below this fraction of the squared scene diagonal.
+REL_AREA_EPS = 1e-12
+
+
+# ----------------------------------------------------------------------------------------------------------
+# small numeric helpers (bpy-free)
+# ----------------------------------------------------------------------------------------------------------
+
+def _unit(v: np.ndarray, fallback) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    if not math.isfinite(n) or n < 1e-30:
+        return np.asarray(fallback, dtype=np.float64)
+    return v / n
+
+
+def orthonormal_frame(m: np.ndarray, primary: int = 2, secondary: int = 0) -> np.ndarray:
+    """Right-handed orthonormal copy of a 4x4 affine matrix: axis `primary` keeps its direction, axis
+    `secondary` is made perpendicular to it (Gram-Schmidt), the third axis completes a right-handed frame.
+    Translation is kept. Degenerate (zero-scale) axes fall back to the identity axes."""
+    m = np.asarray(m, dtype=np.float64)
+    out = np.eye(4)
+    eye = np.eye(3)
+    a = _unit(m[:3, primary].copy(), eye[primary])
+    b = m[:3, secondary] - np.dot(m[:3, secondary], a) * a
+    b = _unit(b, eye[secondary] - np.dot(eye[secondary], a) * a)
+    if np.linalg.norm(b) < 0.5:  # fallback axis parallel to `a`: take any perpendicular
+        helper = eye[np.argmin(np.abs(a))]
+        b = _unit(helper - np.dot(helper, a) * a, helper)
+    third = 3 - primary - secondary
+    # Right-handed: x = y × z, y = z × x, z = x × y.
+    axes = {primary: a, secondary: b}
+    nxt = {0: (1, 2), 1: (2, 0), 2: (0, 1)}[third]
+    axes[third] = np.cross(axes[nxt[0]], axes[nxt[1]])
+    for i in range(3):
+        out[:3, i] = axes[i]
+    out[:3, 3] = m[:3, 3]
+    return out
+
+
+def _matrix_np(mat) -> np.ndarray:
+    """mathutils.Matrix -> (4, 4) float64 array (rows as Blender stores them)."""
+    return np.array(mat, dtype=np.float64)
+
+
+def _stack_matrices(mats: list) -> np.ndarray:
+    """List of 4x4 mathutils.Matrix -> (K, 4, 4) float64. Goes through the buffer protocol (bytes() gives
+    the logical row-major float32 layout), several times faster than np.array(list) for 100k matrices."""
+    raw = b"".join(map(bytes, mats))
+    if len(raw) == 64 * len(mats):
+        return np.frombuffer(raw, np.float32).reshape(-1, 4, 4).astype(np.float64)
+    return np.array(mats, dtype=np.float64).reshape(-1, 4, 4)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# meshes
+# ----------------------------------------------------------------------------------------------------------
+
+class _MeshArrays:
+    __slots__ = ("pos", "nrm", "mat")
+
+    def __init__(self, pos, nrm, mat):
+        self.pos = pos          # (t, 3, 3) float32, object space
+        self.nrm = nrm          # (t, 3, 3) float32, object space corner normals
+        self.mat = mat          # (t,) int32 material index (unclamped)
+
+
+def _read_int_attribute(mesh, name: str, domain: str, count: int):
+    attr = mesh.attributes.get(name)
+    if attr is None or attr.domain != domain or attr.data_type != "INT" or len(attr.data) != count:
+        return None
+    out = np.empty(count, np.int32)
+    attr.data.foreach_get("value", out)
+    return out
+
+
+def read_mesh(mesh) -> _MeshArrays | None:
+    """Triangulated local arrays of an evaluated mesh, bulk reads only. None for an empty mesh.
+
+    The dtypes matter: `loop_triangles.foreach_get('loops', …)` has a raw-copy fast path only for uint32
+    buffers (about 100x faster than int32 at 1M triangles)."""
+    tris = mesh.loop_triangles
+    nt = len(tris)
+    if nt == 0:
+        return None
+    nv, nl = len(mesh.vertices), len(mesh.loops)
+
+    loops = np.empty(nt * 3, np.uint32)
+    tris.foreach_get("loops", loops)
+
+    co = np.empty(nv * 3, np.float32)
+    pos_attr = mesh.attributes.get("position")
+    if pos_attr is not None and pos_attr.data_type == "FLOAT_VECTOR" and len(pos_attr.data) == nv:
+        pos_attr.data.foreach_get("vector", co)
+    else:
+        mesh.vertices.foreach_get("co", co)
+    co = co.reshape(nv, 3)
+
+    corner_vert = _read_int_attribute(mesh, ".corner_vert", "CORNER", nl)
+    if corner_vert is not None:
+        tri_verts = np.take(corner_vert, loops)
+    else:
+        tri_verts = np.empty(nt * 3, np.uint32)
+        tris.foreach_get("vertices", tri_verts)
+
+    cn = np.empty(nl * 3, np.float32)
+    mesh.corner_normals.foreach_get("vector", cn)
+    cn = cn.reshape(nl, 3)
+
+    face_mat = _read_int_attribute(mesh, "material_index", "FACE", len(mesh.polygons))
+    if face_mat is None:
+        mat = np.zeros(nt, np.int32)
+    else:
+        tri_poly = np.empty(nt, np.int32)
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
+        mat = np.take(face_mat, tri_poly)
+
+    return _MeshArrays(np.take(co, tri_verts, axis=0).reshape(nt, 3, 3),
+                       np.take(cn, loops, axis=0).reshape(nt, 3, 3), mat)
+
+
+def transform_instances(arrays: _MeshArrays, matrices: np.ndarray):
+    """World positions and normals of K instances of one mesh. matrices: (K, 4, 4). Returns
+    pos (K*t, 3, 3) float32, nrm (K*t, 3, 3) float32, flipped (K,) bool (det < 0: corners 1, 2 swapped)."""
+    k = matrices.shape[0]
+    t = arrays.pos.shape[0]
+    rot = matrices[:, :3, :3].astype(np.float32)
+    a, b, c = rot[:, :, 0], rot[:, :, 1], rot[:, :, 2]
+    # Cofactor matrix, columns (b×c, c×a, a×b) = det · R^-T. It stays meaningful for singular R (a zero
+    # scale axis flattens normals onto that axis instead of producing NaN), so no inverse is needed.
+    cof = np.stack([np.cross(b, c), np.cross(c, a), np.cross(a, b)], axis=2)
+    det = np.einsum("ki,ki->k", a, cof[:, :, 0])
+    flipped = det < 0
+    cof[flipped] *= -1.0
+    # Row vectors: p'^T = p^T R^T + T, n'^T ∝ n^T cof^T.
+    if k == 1:
+        r, tr = rot[0], matrices[0, :3, 3].astype(np.float32)
+        if np.array_equal(r, np.eye(3, dtype=np.float32)):
+            pos = arrays.pos.reshape(-1, 3) + tr
+            nrm = arrays.nrm.reshape(-1, 3).copy()
+            return pos.reshape(t, 3, 3), nrm.reshape(t, 3, 3), flipped
+        pos = arrays.pos.reshape(-1, 3) @ r.T + tr
+        gram = cof[0].T @ cof[0]
+        scale2 = float(np.trace(gram)) / 3.0
+        if scale2 > 0 and np.abs(gram - scale2 * np.eye(3)).max() <= 1e-5 * scale2:
+            # Rotation times uniform scale: one matrix maps unit normals to unit normals.
+            nrm = arrays.nrm.reshape(-1, 3) @ (cof[0].T / np.float32(math.sqrt(scale2)))
+            return _flip(pos.reshape(1, t, 3, 3), nrm.reshape(1, t, 3, 3), flipped) + (flipped,)
+        nrm = arrays.nrm.reshape(-1, 3) @ cof[0].T
+    else:
+        pos = np.matmul(arrays.pos.reshape(1, t * 3, 3), rot.transpose(0, 2, 1))
+        pos += matrices[:, None, :3, 3].astype(np.float32)
+        nrm = np.matmul(arrays.nrm.reshape(1, t * 3, 3), cof.transpose(0, 2, 1))
+    nrm = nrm.reshape(-1, 3)
+    length = np.sqrt(np.einsum("ij,ij->i", nrm, nrm))[:, None]
+    np.divide(nrm, length, out=nrm, where=length > 0)
+    return _flip(pos.reshape(k, t, 3, 3), nrm.reshape(k, t, 3, 3), flipped) + (flipped,)
+
+
+def _flip(pos, nrm, flipped):
+    """Swap corners 1 and 2 of mirrored instances so winding stays counter-clockwise from the front."""
+    k, t = pos.shape[:2]
+    if flipped.any():
+        swap = [0, 2, 1]
+        if flipped.all():
+            pos = pos[:, :, swap]
+            nrm = nrm[:, :, swap]
+        else:
+            pos[flipped] = pos[flipped][:, :, swap]
+            nrm[flipped] = nrm[flipped][:, :, swap]
+    return pos.reshape(k * t, 3, 3), nrm.reshape(k * t, 3, 3)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# materials
+# ----------------------------------------------------------------------------------------------------------
+
+def _follow_reroutes(socket):
+    """The node feeding `socket` (through reroutes and muted-free links), or None."""
+    seen = 0
+    while socket is not None and socket.is_linked and seen < 64:
+        link = socket.links[0]
+        if getattr(link, "is_muted", False) or not getattr(link, "is_valid", True):
+            return None
+        node = link.from_node
+        if node.bl_idname == "NodeReroute":
+            socket = node.inputs[0]
+            seen += 1
+            continue
+        return node, link.from_socket
+    return None
+
+
+def material_albedo(mat, warn) -> tuple[float, float, float]:
+    """Diffuse colour of a material, linear RGB. `warn(text)` is called for anything approximated."""
+    if mat is None:
+        return GREY
+    tree = mat.node_tree
+    if tree is None:
+        return tuple(float(c) for c in mat.diffuse_color[:3])
+    out = None
+    get_output = getattr(tree, "get_output_node", None)
+    if get_output is not None:
+        out = get_output("CYCLES") or get_output("ALL")
+    if out is None:
+        outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
+        out = next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+    if out is None:
+        return tuple(float(c) for c in mat.diffuse_color[:3])
+    fed = _follow_reroutes(out.inputs.get("Surface"))
+    if fed is None:
+        # Cycles renders an unconnected surface as black; treat as the neutral grey but say so.
+        warn(f"material '{mat.name}': no surface shader connected, using 0.8 grey")
+        return GREY
+    node, _ = fed
+    if node.bl_idname == "ShaderNodeBsdfPrincipled":
+        sock = node.inputs.get("Base Color")
+    elif node.bl_idname == "ShaderNodeBsdfDiffuse":
+        sock = node.inputs.get("Color")
+    else:
+        warn(f"material '{mat.name}': surface shader '{node.name}' ({node.bl_idname}) is not supported, "
+             f"using 0.8 grey")
+        return GREY
+    if sock is None:
+        return GREY
+    if sock.is_linked:
+        src = _follow_reroutes(sock)
+        if src is not None and src[0].bl_idname == "ShaderNodeRGB":
+            return tuple(float(c) for c in src[0].outputs[0].default_value[:3])
+        warn(f"material '{mat.name}': base colour is driven by a node (texture?), using 0.8 grey")
+        return GREY
+    return tuple(float(c) for c in sock.default_value[:3])
+
+
+# ----------------------------------------------------------------------------------------------------------
+# lights
+# ----------------------------------------------------------------------------------------------------------
+
+def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
+    """Snapshot light from a bpy Light datablock and its instance world matrix (4x4 numpy). `warn(text)`
+    receives anything the snapshot cannot represent exactly."""
+    kind = light.type
+    scale = np.linalg.norm(matrix[:3, :3], axis=0)  # |local X|, |local Y|, |local Z|
+    color = np.array(light.color[:3], dtype=np.float64)
+    if getattr(light, "use_temperature", False):
+        color = color * np.array(light.temperature_color[:3], dtype=np.float64)
+    power = float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+    normalize = bool(getattr(light, "normalize", True))
+    out = Light(name=name, kind=kind, matrix=orthonormal_frame(matrix, 2, 0), color=color, power=power,
+                casts_shadow=bool(light.use_shadow))
+    if kind == AREA:
+        out.shape = light.shape
+        size_y = light.size_y if light.shape in (RECTANGLE, ELLIPSE) else light.size
+        out.size_x = float(light.size * scale[0])
+        out.size_y = float(size_y * scale[1])
+        if out.size_x <= 0.0 or out.size_y <= 0.0:
+            warn(f"area light '{name}' has zero size: rendered as a point light (hard shadow)")
+    elif kind in (POINT, SPOT):
+        out.radius = float(light.shadow_soft_size)
+        if kind == SPOT:
+            out.spot_size = float(light.spot_size)
+            out.spot_blend = float(light.spot_blend)
+            out.spot_scale = scale.copy()
+            if getattr(light, "use_square", False):
+                warn(f"spot light '{name}' has a square cone: rendered with a round cone")
+    elif kind == SUN:
+        out.angle = float(light.angle)
+    if not normalize:
+        # Cycles divides by the emitting area only when Normalize is on; fold the difference into power.
+        if kind == AREA:
+            area = out.area
+        elif kind in (POINT, SPOT):
+            area = 4.0 * math.pi * out.radius ** 2 or 4.0
+        elif kind == SUN:
+            area = math.pi * math.sin(out.angle / 2.0) ** 2 if out.angle > 0 else 1.0
+        else:
+            area = 1.0
+        out.power *= area
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+# camera
+# ----------------------------------------------------------------------------------------------------------
+
+def render_size(scene) -> tuple[int, int]:
+    r = scene.render
+    return (max(1, int(r.resolution_x * r.resolution_percentage // 100)),
+            max(1, int(r.resolution_y * r.resolution_percentage // 100)))
+
+
+def make_camera(depsgraph, scene, width: int, height: int, warnings: list[str]) -> Camera:
+    cam = scene.camera
+    if cam is None:
+        raise ValueError(f"Scene '{scene.name}' has no camera: add a camera and make it the scene's active "
+                         f"camera (Scene properties > Camera)")
+    if not cam.is_evaluated:
+        cam = cam.evaluated_get(depsgraph)
+    r = scene.render
+    proj = cam.calc_matrix_camera(depsgraph, x=width, y=height,
+                                  scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y)
+    world = orthonormal_frame(_matrix_np(cam.matrix_world), 2, 1)
+    data = cam.data
+    is_ortho = False
+    clip_start, clip_end = 0.1, 100.0
+    if data is not None and hasattr(data, "clip_start"):
+        is_ortho = data.type == "ORTHO"
+        clip_start, clip_end = float(data.clip_start), float(data.clip_end)
+        if data.type == "PANO":
+            warnings.append(f"camera '{cam.name}' is panoramic: rendered with a perspective projection")
+    return Camera(name=cam.name, view=np.linalg.inv(world), projection=_matrix_np(proj),
+                  width=int(width), height=int(height), is_ortho=is_ortho,
+                  clip_start=clip_start, clip_end=clip_end)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# extraction
+# ----------------------------------------------------------------------------------------------------------
+
+def _role(ob) -> str:
+    props = getattr(ob, "penumbra", None)
+    return str(getattr(props, "role", "BOTH")) if props is not None else "BOTH"
+
+
+def extract(depsgraph, scene=None, *, width: int | None = None, height: int | None = None) -> SceneSnapshot:
+    """Snapshot of everything visible in `depsgraph` (render or viewport). `width`/`height` override the
+    camera resolution (otherwise render resolution × percentage)."""
+    if scene is None:
+        scene = depsgraph.scene
+    warnings: list[str] = []
+    warned: set[str] = set()
+
+    def warn_once(text: str):
+        if text not in warned:
+            warned.add(text)
+            warnings.append(text)
+
+    objects: list[ObjectInfo] = []
+    object_index: dict[tuple, int] = {}
+    albedo_tables: list[np.ndarray] = []
+    material_cache: dict[int, tuple] = {}
+    table_cache: dict[tuple, int] = {}
+    # Per-instance lookup: (object name, instancer name, mesh pointer) -> (object id, albedo table id).
+    # Instances are temporary Object copies whose pointers get reused, so names identify them.
+    inst_cache: dict[tuple, tuple[int, int]] = {}
+    mesh_arrays: dict[int, _MeshArrays | None] = {}
+    groups: dict[int, tuple[list, list, list]] = {}  # mesh pointer -> (world matrices, object ids, table ids)
+    lights: list[Light] = []
+
+    # Hot loop: ~100k iterations for instance-heavy scenes, so only cheap RNA reads per instance.
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        ob_type = ob.type
+        if ob_type == "MESH":
+            if inst.is_instance:
+                parent = inst.parent
+                parent_name = parent.name
+            else:
+                if not inst.show_self:   # e.g. a particle emitter with "Show Emitter" off
+                    continue
+                parent, parent_name = None, ""
+            mesh = ob.data
+            mesh_ptr = mesh.as_pointer()
+            key = (ob.name, parent_name, mesh_ptr)
+            ids = inst_cache.get(key)
+            if ids is None:
+                ids = inst_cache[key] = _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables,
+                                                      material_cache, table_cache, warn_once)
+            group = groups.get(mesh_ptr)
+            if group is None:
+                if mesh_ptr not in mesh_arrays:
+                    mesh_arrays[mesh_ptr] = read_mesh(mesh)
+                group = groups[mesh_ptr] = ([], [], [])
+            group[0].append(inst.matrix_world.copy())   # must copy: the iterator reuses the matrix
+            group[1].append(ids[0])
+            group[2].append(ids[1])
+        elif ob_type == "LIGHT":
+            lights.append(make_light(ob.name, ob.data, _matrix_np(inst.matrix_world), warn_once))
+
+    geometry = _assemble(groups, mesh_arrays, albedo_tables)
+    geometry = _sanitize(geometry, objects, warnings)
+
+    if width is None or height is None:
+        w, h = render_size(scene)
+        width = w if width is None else width
+        height = h if height is None else height
+    camera = make_camera(depsgraph, scene, int(width), int(height), warnings)
+
+    # A scene without lights is not an error here; the pipeline warns (once) when it renders it.
+    return SceneSnapshot(objects=objects, lights=lights, camera=camera, name=scene.name, warnings=warnings,
+                         **geometry)
+
+
+def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, material_cache, table_cache,
+                  warn_once) -> tuple[int, int]:
+    caster = bool(ob.visible_shadow)
+    receiver = bool(ob.visible_camera)
+    role = _role(ob)
+    if parent is not None and parent != ob:
+        # Cycles ANDs the instancer's ray visibility into the instance's.
+        caster = caster and bool(parent.visible_shadow)
+        receiver = receiver and bool(parent.visible_camera)
+        if role == "BOTH":
+            role = _role(parent)
+    okey = (ob.name, caster, receiver, role)
+    oid = object_index.get(okey)
+    if oid is None:
+        oid = object_index[okey] = len(objects)
+        objects.append(ObjectInfo(name=ob.name, caster=caster, receiver=receiver, role=role))
+
+    mats = [slot.material for slot in ob.material_slots]
+    if not mats:
+        mats = list(mesh.materials)
+    colors = []
+    for mat in mats:
+        mkey = mat.as_pointer() if mat is not None else 0
+        col = material_cache.get(mkey)
+        if col is None:
+            col = material_cache[mkey] = material_albedo(mat, warn_once)
+        colors.append(col)
+    tkey = tuple(colors) or (GREY,)
+    tid = table_cache.get(tkey)
+    if tid is None:
+        tid = table_cache[tkey] = len(albedo_tables)
+        albedo_tables.append(np.array(tkey, dtype=np.float32).reshape(-1, 3))
+    return oid, tid
+
+
+def _assemble(groups, mesh_arrays, albedo_tables) -> dict:
+    pos_parts, nrm_parts, oid_parts, alb_parts = [], [], [], []
+    for mesh_ptr, (mats, oids, tids) in groups.items():
+        arrays = mesh_arrays[mesh_ptr]
+        if arrays is None:
+            continue
+        t = arrays.pos.shape[0]
+        pos, nrm, _ = transform_instances(arrays, _stack_matrices(mats))
+        pos_parts.append(pos)
+        nrm_parts.append(nrm)
+        oid_parts.append(np.repeat(np.asarray(oids, np.int32), t))
+        tids = np.asarray(tids, np.int32)
+        unique = np.unique(tids)
+        if len(unique) == 1:
+            table = albedo_tables[unique[0]]
+            alb = np.broadcast_to(table[np.clip(arrays.mat, 0, len(table) - 1)], (len(tids), t, 3))
+        else:
+            alb = np.empty((len(tids), t, 3), np.float32)
+            for tid in unique:
+                table = albedo_tables[tid]
+                alb[tids == tid] = table[np.clip(arrays.mat, 0, len(table) - 1)]
+        alb_parts.append(alb.reshape(-1, 3))
+    if not pos_parts:
+        return SceneSnapshot.empty_geometry()
+    if len(pos_parts) == 1:
+        return dict(positions=pos_parts[0], normals=nrm_parts[0], object_id=oid_parts[0],
+                    albedo=np.ascontiguousarray(alb_parts[0]))
+    return dict(positions=np.concatenate(pos_parts), normals=np.concatenate(nrm_parts),
+                object_id=np.concatenate(oid_parts), albedo=np.concatenate(alb_parts))
+
+
+def _sanitize(geometry: dict, objects: list[ObjectInfo], warnings: list[str]) -> dict:
+    """Drop non-finite and zero-area triangles (one warning per object and cause), repair unusable normals.
+
+    Zero area means below REL_AREA_EPS × (scene bounding-box diagonal)², so millimetre-scale scenes keep
+    their small triangles while exact duplicates / collinear corners are removed."""
+    pos = geometry["positions"]
+    n = pos.shape[0]
+    if n == 0:
+        return geometry
+    if np.isfinite(pos).all():
+        finite = None
+        fpos = pos
+    else:
+        finite = np.isfinite(pos.reshape(n, 9)).all(axis=1)
+        fpos = pos[finite]
+    if fpos.shape[0]:
+        flat = fpos.reshape(-1, 3)
+        diag2 = sum((float(flat[:, i].max()) - float(flat[:, i].min())) ** 2 for i in range(3))
+    else:
+        diag2 = 0.0
+    q = pos.transpose(1, 2, 0)            # (corner, xyz, triangle) view
+    e1 = q[1] - q[0]
+    e2 = q[2] - q[0]
+    cross = np.stack([e1[1] * e2[2] - e1[2] * e2[1],
+                      e1[2] * e2[0] - e1[0] * e2[2],
+                      e1[0] * e2[1] - e1[1] * e2[0]])          # (3, n) = 2 × area × unit normal
+    area2 = cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]   # (2 area)²
+    with np.errstate(invalid="ignore"):
+        tiny = ~(area2 > 4.0 * (REL_AREA_EPS * diag2) ** 2)
+    if finite is not None:
+        tiny &= finite
+    n_obj = len(objects)
+    oid = geometry["object_id"]
+    if finite is not None:
+        counts = np.bincount(oid[~finite], minlength=n_obj)
+        for i in np.flatnonzero(counts):
+            warnings.append(f"object '{objects[i].name}': dropped {counts[i]} triangle(s) with NaN/Inf vertices")
+    any_tiny = bool(tiny.any())
+    if any_tiny:
+        counts = np.bincount(oid[tiny], minlength=n_obj)
+        for i in np.flatnonzero(counts):
+            warnings.append(f"object '{objects[i].name}': dropped {counts[i]} zero-area triangle(s)")
+    if finite is not None or any_tiny:
+        keep = ~tiny if finite is None else (finite & ~tiny)
+        geometry = {k: v[keep] for k, v in geometry.items()}
+        cross = cross[:, keep]
+        area2 = area2[keep]
+    # Normals that cannot be used (NaN or zero, e.g. from a degenerate source face) -> geometric normal.
+    nrm = geometry["normals"]
+    nlen2 = np.einsum("tci,tci->tc", nrm, nrm)
+    bad = ~(nlen2 > 1e-12)
+    if bad.any():
+        rows, cols = np.nonzero(bad)
+        face = (cross[:, rows] / np.sqrt(area2[rows])).T.astype(np.float32)
+        nrm[rows, cols] = face
+    return geometry
