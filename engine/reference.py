@@ -1,0 +1,473 @@
+"""Cycles ground truth for shadow visibility.
+
+`cycles_visibility(scene)` renders the scene twice with Cycles on the CPU, direct light only, every
+surface replaced by a white Lambertian diffuse material and the world black:
+
+  shadowed    the scene as is
+  unshadowed  the same with every object's `visible_shadow` off (nothing blocks any light)
+
+and returns V_ref = L(shadowed) / L(unshadowed) (L = Rec. 709 luminance). Because the material is white
+Lambertian and only direct light is traced, this ratio is the irradiance-weighted visibility
+sum_i E_i V_i / sum_i E_i over all lights and all points of each light, which is what a soft-shadow
+technique estimates. Both renders use the same seed, so their light samples coincide: the ratio is
+then a ratio estimator over identical samples (much less noisy than two independent renders) and
+never exceeds 1 except by float rounding.
+
+Pixel filter: Cycles spreads each pixel's samples over a filter footprint around the pixel centre;
+Penumbra shades one point per pixel, at its centre. The matching choice is a Gaussian filter of the
+minimal width (0.01 px): every camera ray then passes (within 0.005 px) through the pixel centre, and
+only the integral over the lights is estimated. BOX is not usable for this: Cycles forces its width to
+1 px, which averages V over the pixel's area (measured: against an exact quadrature of a square light
+over a square occluder at 1024 spp, mae_shadow 0.0004 with the narrow Gaussian, 0.0019 with BOX).
+`filter_type`/`filter_width` can select an antialiased target instead.
+
+Material: a Diffuse BSDF with roughness 0, which Cycles evaluates as pure Lambert (roughness > 0 turns
+it into Oren-Nayar; Principled adds specular/sheen/coat lobes unless each is zeroed).
+
+Arrays use row 0 = BOTTOM of the image (Blender/OpenGL convention, as `gpu` framebuffers read back);
+EXR files store the top row first, so the rows are flipped on reading.
+
+Results are cached on disk (`cache_dir`, default $PENUMBRA_CACHE/reference or
+~/.cache/penumbra/reference) under a hash of everything that affects the two renders: evaluated
+geometry, object matrices and shadow/camera visibility flags, lights, camera, resolution, samples,
+seed, filter and the Blender version. The mask threshold is applied after loading, so changing it
+never re-renders. The hash reads the view layer's (viewport-evaluated) depsgraph: a modifier whose
+render and viewport settings differ is hashed as the viewport shows it.
+
+Other settings held fixed during the renders (and restored after, also on error): CPU device, adaptive
+sampling and denoising off, no animated seed, direct-light clamp off, light threshold 0, motion blur,
+compositing and sequencer off, light emitters hidden from the camera, other view layers disabled.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .metrics import LUMA, compare
+
+# Bump when the rendering method changes, so old cache entries are not reused.
+CACHE_VERSION = 1
+# Gaussian filter width (pixels) that approximates point sampling at pixel centres; Blender's minimum.
+POINT_FILTER_WIDTH = 0.01
+# Default mask threshold, relative to the 99th percentile of the unshadowed luminance.
+DEFAULT_THRESHOLD = 1e-3
+
+# Number of Cycles renders actually run in this process (cache hits do not count). Tests read it.
+render_count = 0
+
+
+@dataclass
+class ReferenceResult:
+    """One Cycles reference. Images have row 0 = bottom of the frame.
+
+    visibility  (H, W) float32 V_ref in [0, 1]; 1.0 where `mask` is False
+    mask        (H, W) bool, pixels whose unshadowed luminance is above the threshold
+    shadowed    (H, W, 3) float32 linear RGB, the normal direct-light render
+    unshadowed  (H, W, 3) float32 linear RGB, the same with no shadow casters
+    seconds     Cycles wall time of the two renders (of the original renders for a cache hit)
+    """
+
+    visibility: np.ndarray
+    mask: np.ndarray
+    shadowed: np.ndarray
+    unshadowed: np.ndarray
+    seconds: float
+    samples: int
+    seed: int
+    threshold: float = DEFAULT_THRESHOLD
+    cached: bool = False
+    key: str = ""
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return tuple(self.visibility.shape)
+
+
+def default_cache_dir() -> Path:
+    root = os.environ.get("PENUMBRA_CACHE")
+    base = Path(root).expanduser() if root else Path.home() / ".cache" / "penumbra"
+    return base / "reference"
+
+
+def visibility_from(shadowed: np.ndarray, unshadowed: np.ndarray, threshold: float = DEFAULT_THRESHOLD):
+    """(visibility, mask) from the two renders. `threshold` is relative: a pixel is in the mask when its
+    unshadowed luminance exceeds `threshold` times the 99th percentile of the unshadowed luminance
+    (and is strictly positive). V is clipped to [0, 1] and set to 1 outside the mask."""
+    ls = shadowed[..., :3].astype(np.float64) @ LUMA
+    lu = unshadowed[..., :3].astype(np.float64) @ LUMA
+    finite = np.isfinite(ls) & np.isfinite(lu)
+    pos = lu[finite & (lu > 0)]
+    level = float(np.percentile(pos, 99)) * threshold if pos.size else np.inf
+    mask = finite & (lu > 0) & (lu > level)
+    vis = np.ones(lu.shape, dtype=np.float64)
+    vis[mask] = np.clip(ls[mask] / lu[mask], 0.0, 1.0)
+    return vis.astype(np.float32), mask
+
+
+# ----------------------------------------------------------------------------------------------------
+# Scene hashing
+
+
+_SKIP_PROPS = {"rna_type", "name", "name_full", "session_uid", "users", "use_fake_user", "use_extra_user",
+               "tag", "is_evaluated", "is_embedded_data", "is_linked_packed", "is_missing",
+               "is_runtime_data", "is_editable", "is_library_indirect", "id_type", "display_size",
+               "passepartout_alpha", "composition_guide_color", "custom_bytecode_hash"}
+
+
+def _rna_values(struct) -> list:
+    """Plain (float/int/bool/enum/string) RNA properties of a datablock, for hashing. Pointers,
+    collections and viewport-display settings are skipped."""
+    out = []
+    for prop in struct.bl_rna.properties:
+        ident = prop.identifier
+        if ident in _SKIP_PROPS or ident.startswith("show_") or prop.type in ("POINTER", "COLLECTION"):
+            continue
+        try:
+            val = getattr(struct, ident)
+        except Exception:
+            continue
+        if isinstance(val, set):
+            val = tuple(sorted(val))
+        elif hasattr(val, "__len__") and not isinstance(val, str):
+            val = tuple(val)
+        out.append((ident, val))
+    return out
+
+
+def _mesh_digest(mesh) -> bytes:
+    h = hashlib.sha1()
+    nv, nl, npoly = len(mesh.vertices), len(mesh.loops), len(mesh.polygons)
+    h.update(np.array([nv, nl, npoly], np.int64).tobytes())
+    co = np.empty(nv * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    h.update(co.tobytes())
+    li = np.empty(nl, np.int32)
+    mesh.loops.foreach_get("vertex_index", li)
+    h.update(li.tobytes())
+    tot = np.empty(npoly, np.int32)
+    mesh.polygons.foreach_get("loop_total", tot)
+    h.update(tot.tobytes())
+    smooth = np.empty(npoly, bool)
+    mesh.polygons.foreach_get("use_smooth", smooth)
+    h.update(smooth.tobytes())
+    return h.digest()
+
+
+def scene_key(scene, *, samples: int, seed: int, width: int, height: int, filter_width: float,
+              filter_type: str = "GAUSSIAN", view_layer=None) -> str:
+    """Hex digest of everything that changes the two reference renders."""
+    import bpy
+
+    view_layer = view_layer or _pick_view_layer(scene)
+    depsgraph = view_layer.depsgraph
+    depsgraph.update()
+    h = hashlib.sha256()
+
+    def put(*items):
+        h.update(repr(items).encode())
+
+    put("penumbra-reference", CACHE_VERSION, bpy.app.version_string, int(samples), int(seed),
+        int(width), int(height), str(filter_type), round(float(filter_width), 6))
+    put("pixel_aspect", scene.render.pixel_aspect_x, scene.render.pixel_aspect_y)
+
+    mesh_cache: dict[str, bytes] = {}
+    records = []
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        orig = ob.original
+        mat = np.array(inst.matrix_world, dtype=np.float64).tobytes()
+        flags = (orig.name, ob.type, bool(orig.visible_shadow), bool(orig.visible_camera),
+                 bool(orig.hide_render))
+        if ob.type == "LIGHT":
+            records.append((b"L", repr((flags, _rna_values(ob.data), _rna_values(ob.data.cycles)
+                                        if hasattr(ob.data, "cycles") else None)).encode(), mat))
+        elif ob.type in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
+            dkey = f"{ob.type}:{ob.data.name if ob.data else ob.name}:{ob.name}"
+            digest = mesh_cache.get(dkey)
+            if digest is None:
+                if ob.type == "MESH":
+                    digest = _mesh_digest(ob.data)
+                else:
+                    me = ob.to_mesh()
+                    try:
+                        digest = _mesh_digest(me) if me is not None else b""
+                    finally:
+                        ob.to_mesh_clear()
+                mesh_cache[dkey] = digest
+            records.append((b"M", repr(flags).encode() + digest, mat))
+        elif ob.type in ("CURVES", "POINTCLOUD", "VOLUME"):
+            records.append((b"O", repr(flags).encode(), mat))
+    for tag, payload, mat in sorted(records):
+        h.update(tag)
+        h.update(payload)
+        h.update(mat)
+
+    cam = scene.camera
+    if cam is None:
+        raise ValueError(f"scene {scene.name!r} has no camera")
+    cam_eval = cam.evaluated_get(depsgraph)
+    put("camera", _rna_values(cam_eval.data))
+    h.update(np.array(cam_eval.matrix_world, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+# ----------------------------------------------------------------------------------------------------
+# Rendering
+
+
+class _Settings:
+    """Records attribute changes so they can be undone in reverse order, even after an error."""
+
+    def __init__(self):
+        self._undo: list[tuple[object, str, object]] = []
+
+    def set(self, obj, attr: str, value):
+        old = getattr(obj, attr)
+        if isinstance(old, (list, tuple)) or hasattr(old, "to_tuple"):
+            old = tuple(old)
+        self._undo.append((obj, attr, old))
+        setattr(obj, attr, value)
+
+    def restore(self):
+        errors = []
+        for obj, attr, old in reversed(self._undo):
+            try:
+                setattr(obj, attr, old)
+            except Exception as exc:  # keep restoring the rest
+                errors.append(f"{attr}: {exc}")
+        self._undo.clear()
+        if errors:
+            raise RuntimeError("could not restore scene settings: " + "; ".join(errors))
+
+
+def _pick_view_layer(scene):
+    import bpy
+
+    ctx_layer = getattr(bpy.context, "view_layer", None)
+    if bpy.context.scene == scene and ctx_layer is not None:
+        return ctx_layer
+    for layer in scene.view_layers:
+        if layer.use:
+            return layer
+    return scene.view_layers[0]
+
+
+def _make_material():
+    import bpy
+
+    mat = bpy.data.materials.new("penumbra_reference_white")
+    nodes = mat.node_tree.nodes
+    nodes.clear()
+    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+    bsdf.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.0  # 0 = Lambert; > 0 would be Oren-Nayar
+    out = nodes.new("ShaderNodeOutputMaterial")
+    out.target = "ALL"
+    mat.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+def _make_world():
+    import bpy
+
+    world = bpy.data.worlds.new("penumbra_reference_black")
+    world.color = (0.0, 0.0, 0.0)
+    if world.node_tree is not None:
+        for node in world.node_tree.nodes:
+            if node.type == "BACKGROUND":
+                node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+                node.inputs["Strength"].default_value = 0.0
+    return world
+
+
+def read_exr_combined(path: str, layer: str | None = None) -> np.ndarray:
+    """(H, W, 3) float32 RGB of the Combined pass in a (multi-part or single-part) EXR written by
+    Blender, row 0 = bottom (rows flipped from the file's top-down order)."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        parts = f.parts
+        chosen = None
+        for part in parts:
+            name = part.name() if callable(getattr(part, "name", None)) else getattr(part, "name", "")
+            name = name or ""
+            if name.endswith("Combined") and (layer is None or name.startswith(layer + ".")):
+                chosen = part
+                break
+        if chosen is None and len(parts) == 1:
+            chosen = parts[0]
+        if chosen is None:
+            names = [p.name() if callable(getattr(p, "name", None)) else p.name for p in parts]
+            raise RuntimeError(f"no Combined pass in {path} (parts: {names})")
+        chans = chosen.channels
+        rgb = []
+        for suffix in ("R", "G", "B"):
+            key = next((k for k in chans if k == suffix or k.endswith("." + suffix)), None)
+            if key is None:
+                raise RuntimeError(f"channel {suffix} missing in {path}: {list(chans)}")
+            rgb.append(np.asarray(chans[key].pixels, dtype=np.float32))
+    img = np.stack(rgb, axis=-1)
+    return np.ascontiguousarray(img[::-1])
+
+
+def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_width, view_layer):
+    """Render shadowed and unshadowed images; returns (shadowed, unshadowed, seconds)."""
+    import bpy
+
+    global render_count
+    st = _Settings()
+    temp_ids = []
+    tmpdir = tempfile.mkdtemp(prefix="penumbra_ref_")
+    r = scene.render
+    cy = scene.cycles
+    try:
+        mat = _make_material()
+        temp_ids.append(("materials", mat))
+        world = _make_world()
+        temp_ids.append(("worlds", world))
+
+        st.set(r, "engine", "CYCLES")
+        st.set(cy, "device", "CPU")
+        st.set(cy, "samples", int(samples))
+        st.set(cy, "use_adaptive_sampling", False)
+        st.set(cy, "use_denoising", False)
+        st.set(cy, "seed", int(seed))
+        st.set(cy, "use_animated_seed", False)
+        st.set(cy, "max_bounces", 0)
+        st.set(cy, "sample_clamp_direct", 0.0)
+        st.set(cy, "light_sampling_threshold", 0.0)
+        # Cycles ignores filter_width for BOX (always 1 px), so a narrow Gaussian is the point sampler.
+        st.set(cy, "pixel_filter_type", filter_type)
+        st.set(cy, "filter_width", float(filter_width))
+        st.set(scene, "world", world)
+        st.set(r, "resolution_x", int(width))
+        st.set(r, "resolution_y", int(height))
+        st.set(r, "resolution_percentage", 100)
+        st.set(r, "use_border", False)
+        st.set(r, "use_motion_blur", False)
+        st.set(r, "use_compositing", False)
+        st.set(r, "use_sequencer", False)
+        st.set(r, "use_file_extension", True)
+        st.set(r, "use_single_layer", True)
+        img = r.image_settings
+        # media_type before file_format (restored in reverse: file_format is undone first, then media_type,
+        # which is the order Blender needs when going back to a single-layer format).
+        st.set(img, "media_type", "MULTI_LAYER_IMAGE")
+        st.set(img, "file_format", "OPEN_EXR_MULTILAYER")
+        st.set(img, "color_depth", "32")
+        st.set(img, "exr_codec", "ZIP")
+        for layer in scene.view_layers:
+            if layer != view_layer and layer.use:
+                st.set(layer, "use", False)
+        st.set(view_layer, "use", True)
+        st.set(view_layer, "material_override", mat)
+        for ob in scene.objects:
+            if ob.type == "LIGHT" and ob.visible_camera:
+                st.set(ob, "visible_camera", False)  # the light's own emitter must not appear in the image
+
+        images = []
+        seconds = 0.0
+        for unshadowed in (False, True):
+            if unshadowed:
+                for ob in scene.objects:
+                    if ob.type != "LIGHT" and ob.visible_shadow:
+                        st.set(ob, "visible_shadow", False)
+            path = os.path.join(tmpdir, f"{'unshadowed' if unshadowed else 'shadowed'}.exr")
+            st.set(r, "filepath", path)
+            t0 = time.perf_counter()
+            bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
+            seconds += time.perf_counter() - t0
+            render_count += 1
+            if not os.path.exists(path):
+                raise RuntimeError(f"Cycles wrote no image to {path}")
+            images.append(read_exr_combined(path, view_layer.name))
+        return images[0], images[1], seconds
+    finally:
+        try:
+            st.restore()
+        finally:
+            for coll, idb in temp_ids:
+                try:
+                    getattr(bpy.data, coll).remove(idb)
+                except Exception:
+                    pass
+            for name in os.listdir(tmpdir):
+                try:
+                    os.remove(os.path.join(tmpdir, name))
+                except OSError:
+                    pass
+            try:
+                os.rmdir(tmpdir)
+            except OSError:
+                pass
+
+
+def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: int | None = None,
+                      height: int | None = None, cache_dir=None, threshold: float = DEFAULT_THRESHOLD,
+                      filter_type: str = "GAUSSIAN", filter_width: float = POINT_FILTER_WIDTH,
+                      use_cache: bool = True,
+                      view_layer=None) -> ReferenceResult:
+    """Cycles reference visibility of `scene` (default: the context scene). See the module docstring.
+
+    width/height default to the scene's resolution (percentage applied). `threshold` is relative to the
+    99th percentile of the unshadowed luminance (see `visibility_from`). `use_cache=False` always
+    renders (and does not write the cache). Every scene setting changed is restored afterwards, also on
+    error.
+    """
+    import bpy
+
+    scene = scene or bpy.context.scene
+    view_layer = view_layer or _pick_view_layer(scene)
+    if width is None or height is None:
+        pct = scene.render.resolution_percentage / 100.0
+        width = width or max(1, int(scene.render.resolution_x * pct))
+        height = height or max(1, int(scene.render.resolution_y * pct))
+
+    if filter_type == "BOX":
+        filter_width = 1.0  # what Cycles uses for BOX whatever the setting says
+    key = scene_key(scene, samples=samples, seed=seed, width=width, height=height,
+                    filter_type=filter_type, filter_width=filter_width, view_layer=view_layer)
+    cdir = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
+    path = cdir / f"{key[:40]}.npz"
+    if use_cache and path.exists():
+        try:
+            with np.load(path) as data:
+                shadowed, unshadowed = data["shadowed"], data["unshadowed"]
+                seconds = float(data["seconds"])
+            vis, mask = visibility_from(shadowed, unshadowed, threshold)
+            return ReferenceResult(vis, mask, shadowed, unshadowed, seconds, int(samples), int(seed),
+                                   threshold, cached=True, key=key)
+        except Exception:
+            pass  # unreadable entry: render again and overwrite it
+
+    shadowed, unshadowed, seconds = _render_pair(scene, samples=samples, seed=seed, width=width,
+                                                 height=height, filter_type=filter_type,
+                                                 filter_width=filter_width,
+                                                 view_layer=view_layer)
+    if use_cache:
+        cdir.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
+        np.savez_compressed(tmp, shadowed=shadowed, unshadowed=unshadowed, seconds=np.float64(seconds),
+                            samples=np.int64(samples), seed=np.int64(seed))
+        os.replace(tmp, path)  # atomic: concurrent readers never see a partial file
+    vis, mask = visibility_from(shadowed, unshadowed, threshold)
+    return ReferenceResult(vis, mask, shadowed, unshadowed, seconds, int(samples), int(seed), threshold,
+                           cached=False, key=key)
+
+
+def noise_floor(scene=None, samples: int = 256, *, seeds: tuple[int, int] = (0, 1), **kwargs) -> dict:
+    """The reference's own noise: `metrics.compare` between two Cycles renders that differ only in seed
+    (the first seed's render plays the reference), over the pixels both masks keep. Extra keyword
+    arguments go to `cycles_visibility`. Adds `seconds` (Cycles time of both references) to the dict."""
+    a = cycles_visibility(scene, samples=samples, seed=seeds[0], **kwargs)
+    b = cycles_visibility(scene, samples=samples, seed=seeds[1], **kwargs)
+    out = compare(b.visibility, a.visibility, a.mask & b.mask)
+    out["seconds"] = a.seconds + b.seconds
+    out["samples"] = int(samples)
+    return out

@@ -1,0 +1,187 @@
+"""engine.reference: Cycles visibility on a small analytic scene (needs bpy; ~10-20 s).
+
+Scene: ground plane z=0, a 1x1 occluder at (0.5, 0.5, 1) hidden from the camera (so the camera sees
+the shadow on the ground through it), a 1x1 square area light at (0, 0, 3) facing down, and an
+orthographic camera looking straight down covering [-2, 2]^2, 64x64 pixels.
+"""
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from penumbra.engine import metrics as M  # noqa: E402
+from penumbra.engine import reference as R  # noqa: E402
+
+RES = 64
+SPP = 64
+
+
+def build_scene(res=RES):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=10, location=(0, 0, 0))
+    bpy.context.object.name = "Ground"
+    bpy.ops.mesh.primitive_plane_add(size=1, location=(0.5, 0.5, 1))
+    occ = bpy.context.object
+    occ.name = "Occluder"
+    occ.visible_camera = False
+    light = bpy.data.lights.new("Area", "AREA")
+    light.shape = "SQUARE"
+    light.size = 1.0
+    light.energy = 200.0
+    lo = bpy.data.objects.new("Area", light)
+    lo.location = (0, 0, 3)
+    scene.collection.objects.link(lo)
+    cam = bpy.data.cameras.new("Cam")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 4.0
+    co = bpy.data.objects.new("Cam", cam)
+    co.location = (0, 0, 8)
+    scene.collection.objects.link(co)
+    scene.camera = co
+    scene.render.resolution_x = scene.render.resolution_y = res
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def analytic_visibility(res=RES, n=64):
+    """Irradiance-weighted visibility at each pixel centre by quadrature over the light (n x n points):
+    V = 1 - sum_blocked w / sum w with w = cos * cos / r^2 = 9 / r^4 (light 3 above the ground).
+    Row 0 = bottom (y = -2)."""
+    c = (np.arange(res) + 0.5) / res * 4.0 - 2.0
+    X, Y = np.meshgrid(c, c)
+    g = (np.arange(n) + 0.5) / n - 0.5
+    LX, LY = np.meshgrid(g, g)
+    light = np.stack([LX.ravel(), LY.ravel()], 1)[None]
+    pts = np.stack([X.ravel(), Y.ravel()], 1)
+    out = np.empty(len(pts))
+    for i in range(0, len(pts), 512):
+        p = pts[i:i + 512, None, :]
+        d = light - p
+        w = 1.0 / ((d ** 2).sum(-1) + 9.0) ** 2
+        q = p + d / 3.0  # where the ray to the light crosses the occluder plane z = 1
+        blocked = (np.abs(q[..., 0] - 0.5) <= 0.5) & (np.abs(q[..., 1] - 0.5) <= 0.5)
+        out[i:i + 512] = 1.0 - (w * blocked).sum(1) / w.sum(1)
+    return out.reshape(res, res)
+
+
+def pix(x, y, res=RES):
+    """(row, col) of the pixel containing world point (x, y) on the ground; row 0 = bottom."""
+    return int((y + 2.0) / 4.0 * res), int((x + 2.0) / 4.0 * res)
+
+
+def settings_snapshot(scene):
+    cy, r = scene.cycles, scene.render
+    return dict(
+        engine=r.engine, samples=cy.samples, seed=cy.seed, bounces=cy.max_bounces,
+        denoise=cy.use_denoising, adaptive=cy.use_adaptive_sampling, filter=cy.pixel_filter_type,
+        width=cy.filter_width, world=scene.world, media=r.image_settings.media_type,
+        fmt=r.image_settings.file_format, filepath=r.filepath, res=(r.resolution_x, r.resolution_y),
+        overrides=[vl.material_override for vl in scene.view_layers],
+        shadow={o.name: o.visible_shadow for o in scene.objects},
+        camera_vis={o.name: o.visible_camera for o in scene.objects},
+        materials=len(bpy.data.materials), worlds=len(bpy.data.worlds),
+    )
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return build_scene()
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("refcache")
+
+
+@pytest.fixture(scope="module")
+def ref(scene, cache):
+    before = settings_snapshot(scene)
+    res = R.cycles_visibility(scene, samples=SPP, seed=0, cache_dir=cache)
+    assert settings_snapshot(scene) == before
+    return res
+
+
+def test_shapes_and_types(ref):
+    assert ref.visibility.shape == (RES, RES) and ref.visibility.dtype == np.float32
+    assert ref.mask.shape == (RES, RES) and ref.mask.dtype == bool
+    assert ref.shadowed.shape == ref.unshadowed.shape == (RES, RES, 3)
+    assert ref.samples == SPP and ref.seed == 0 and ref.seconds > 0 and not ref.cached
+    assert ref.mask.all()  # every pixel sees the lit ground
+    assert np.all((ref.visibility >= 0) & (ref.visibility <= 1))
+
+
+def test_umbra_penumbra_lit_and_orientation(ref):
+    v = ref.visibility
+    assert v[pix(0.75, 0.75)] < 0.02           # under the occluder centre: umbra
+    assert v[pix(-1.5, -1.5)] > 0.99           # far corner: fully lit
+    assert v[pix(-1.5, 1.5)] > 0.99
+    # umbra is x, y in [0.25, 1.25]; penumbra out to -0.25 and 1.75; x = 1.5 sees half the light
+    assert 0.3 < v[pix(1.5, 0.75)] < 0.7
+    # row 0 is the bottom: the shadow (at +x, +y) sits in the top-right of the array
+    assert v[pix(0.75, -0.75)] > 0.99          # the mirror image below is lit
+
+
+def test_matches_quadrature(ref):
+    r = M.compare(ref.visibility, analytic_visibility(), ref.mask)
+    assert r["n_shadow"] > 500
+    assert r["mae_shadow"] < 0.015, r
+    assert r["pixel_match"] > 0.995, r
+
+
+def test_cache_hit_skips_rendering(scene, cache, ref):
+    n = R.render_count
+    again = R.cycles_visibility(scene, samples=SPP, seed=0, cache_dir=cache)
+    assert R.render_count == n and again.cached and again.key == ref.key
+    np.testing.assert_array_equal(again.visibility, ref.visibility)
+    np.testing.assert_array_equal(again.shadowed, ref.shadowed)
+    np.testing.assert_array_equal(again.unshadowed, ref.unshadowed)
+    # the mask threshold is applied after loading: no re-render either
+    R.cycles_visibility(scene, samples=SPP, seed=0, cache_dir=cache, threshold=0.5)
+    assert R.render_count == n
+
+
+def test_cache_key_tracks_scene_content(scene, ref):
+    kw = dict(samples=SPP, seed=0, width=RES, height=RES, filter_width=R.POINT_FILTER_WIDTH)
+    assert R.scene_key(scene, **kw) == ref.key
+    occ = bpy.data.objects["Occluder"]
+    light = bpy.data.lights["Area"]
+
+    def changed(obj, attr, value):
+        old = getattr(obj, attr)
+        old = tuple(old) if hasattr(old, "__len__") else old
+        setattr(obj, attr, value)
+        try:
+            return R.scene_key(scene, **kw) != ref.key
+        finally:
+            setattr(obj, attr, old)
+
+    assert changed(occ, "location", (0.51, 0.5, 1.0))          # object matrix
+    assert changed(occ.data.vertices[0], "co", (-0.5, -0.5, 0.01))  # geometry
+    assert changed(light, "size", 1.5)                          # light data
+    assert changed(bpy.data.objects["Area"], "location", (0, 0, 3.1))
+    assert changed(occ, "visible_shadow", False)                # shadow flags
+    assert changed(bpy.data.cameras["Cam"], "ortho_scale", 4.5)  # camera
+    assert R.scene_key(scene, **{**kw, "seed": 1}) != ref.key
+    assert R.scene_key(scene, **kw) == ref.key
+
+
+def test_settings_restored_after_error(scene, cache, monkeypatch):
+    bpy.data.objects["Area"].visible_camera = True  # the reference hides it; it must come back
+    before = settings_snapshot(scene)
+
+    def boom(*a, **k):
+        raise RuntimeError("simulated failure")
+
+    monkeypatch.setattr(R, "read_exr_combined", boom)
+    with pytest.raises(RuntimeError, match="simulated"):
+        R.cycles_visibility(scene, samples=4, seed=7, cache_dir=cache)
+    assert settings_snapshot(scene) == before
+    bpy.data.objects["Area"].visible_camera = False
+
+
+def test_noise_floor_small_but_nonzero(scene, cache, ref):
+    nf = R.noise_floor(scene, SPP, cache_dir=cache)
+    assert nf["n_shadow"] > 500
+    assert 0.0 < nf["mae_shadow"] < 0.02, nf
+    assert nf["pixel_match"] > 0.99
