@@ -88,7 +88,7 @@ def settings_for(scene, args) -> RenderSettings:
     settings = settings_from_scene(scene)
     changes = parse_overrides(args.set)
     if args.technique:
-        changes["technique"] = args.technique.upper()
+        changes["technique"] = args.technique
     if args.map_size:
         changes["shadow_map_size"] = args.map_size
     if args.samples:
@@ -139,11 +139,42 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    scene = load_scene(args)
+    settings = settings_for(scene, args)
+    from .compare import compare
+    bar = ProgressBar(f"{scene.name} {settings.technique}")
+    try:
+        cmp = compare(scene, settings, samples=args.cycles_samples, out_dir=args.out, repeats=args.repeats,
+                      with_noise_floor=not args.no_noise_floor, on_progress=bar)
+    except ValueError as exc:
+        print(f"penumbra: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        bar.close()
+    for message in cmp.warnings:
+        print(f"warning: {message}", file=sys.stderr)
+    print(cmp.summary())
+    if args.out:
+        print(f"wrote {args.out}/{cmp.scene}_{cmp.technique.lower()}{{.exr,_cycles.exr,_compare.png,.json}}")
+    return 0
+
+
 def cmd_scenes(args) -> int:
     from .scenes import list_scenes
     for name, description in list_scenes():
         print(f"{name:<12} {description}")
     return 0
+
+
+def _common_render_args(p) -> None:
+    from .techniques import TECHNIQUES
+    p.add_argument("--technique", type=str.upper, choices=list(TECHNIQUES),
+                   help="shadow technique (default: the scene's setting)")
+    p.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
+    p.add_argument("--map-size", type=int, help="shadow-map size in texels")
+    p.add_argument("--samples", type=int, help="light samples for REFERENCE")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="any render setting, repeatable")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -154,14 +185,21 @@ def build_parser() -> argparse.ArgumentParser:
     src = r.add_mutually_exclusive_group(required=True)
     src.add_argument("blend", nargs="?", help="a .blend file")
     src.add_argument("--scene", help="a built-in scene (see `python -m penumbra scenes`)")
-    r.add_argument("--technique", help="HARD, PCF, PCSS or REFERENCE (default: the scene's setting)")
+    _common_render_args(r)
     r.add_argument("--out", required=True, help="multilayer EXR to write")
     r.add_argument("--png", help="also write Combined as an sRGB PNG")
-    r.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
-    r.add_argument("--map-size", type=int, help="shadow-map size in texels")
-    r.add_argument("--samples", type=int, help="light samples for REFERENCE")
-    r.add_argument("--set", action="append", metavar="NAME=VALUE", help="any render setting, repeatable")
     r.set_defaults(func=cmd_render)
+
+    c = sub.add_parser("compare", help="render with Penumbra and Cycles, print error and time side by side")
+    src = c.add_mutually_exclusive_group(required=True)
+    src.add_argument("blend", nargs="?", help="a .blend file")
+    src.add_argument("--scene", help="a built-in scene")
+    _common_render_args(c)
+    c.add_argument("--out", help="folder for EXRs, the comparison PNG and a JSON of the numbers")
+    c.add_argument("--cycles-samples", type=int, default=256, help="Cycles samples of the reference")
+    c.add_argument("--repeats", type=int, default=3, help="timed repeats of our frame (median reported)")
+    c.add_argument("--no-noise-floor", action="store_true", help="skip the second Cycles seed")
+    c.set_defaults(func=cmd_compare)
 
     s = sub.add_parser("scenes", help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)

@@ -12,7 +12,7 @@ BASE_PASSES = (
     ("Unshadowed", 3, "RGB", "COLOR"),
 )
 DEBUG_PASSES = (
-    ("Irradiance", 1, "X", "VALUE"),    # Σ over lights of the scalar unoccluded irradiance
+    ("Irradiance", 3, "RGB", "COLOR"),  # Σ over lights of the unoccluded irradiance E (W/m²)
 )
 
 

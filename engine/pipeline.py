@@ -74,9 +74,9 @@ def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
 def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
     snap, settings, t = frame.snap, frame.settings, frame.timings
     size = (frame.width, frame.height)
-    combined, unshadowed = frame.texture(size, 4), frame.texture(size, 4)
+    combined, unshadowed, irradiance_sum = frame.texture(size, 4), frame.texture(size, 4), frame.texture(size, 4)
     sums = frame.texture(size, 2)
-    for tex in (combined, unshadowed, sums):
+    for tex in (combined, unshadowed, sums, irradiance_sum):
         tex.write(np.zeros((frame.height, frame.width, tex.components), np.float32).tobytes())
     irradiance, visibility = frame.texture(size, 4), frame.texture(size, 1)
     ones = np.ones((frame.height, frame.width), np.float32).tobytes()
@@ -130,15 +130,15 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
         with t.stage("accumulate"):
             frame.dispatch("shading/accumulate.comp", samplers={"g_irradiance": irradiance,
                            "u_visibility": visibility},
-                           images={0: combined, 1: unshadowed, 2: sums})
+                           images={0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum})
         frame.progress.step(1.0, f"{light.name}: done")
 
     with t.stage("readback"):
-        out = _finish(frame, combined, unshadowed, sums, covered)
+        out = _finish(frame, combined, unshadowed, sums, irradiance_sum, covered)
     return FrameResult(out, dict(t), warnings, stats)
 
 
-def _finish(frame: Frame, combined, unshadowed, sums, covered) -> dict:
+def _finish(frame: Frame, combined, unshadowed, sums, irradiance_sum, covered) -> dict:
     s = frame.read(sums)
     with np.errstate(divide="ignore", invalid="ignore"):
         vis = np.where(s[..., 1] > 0.0, s[..., 0] / s[..., 1], 1.0)
@@ -153,5 +153,5 @@ def _finish(frame: Frame, combined, unshadowed, sums, covered) -> dict:
         "Unshadowed": frame.read(unshadowed, 3).copy(),
     }
     if frame.settings.debug_passes:
-        out["Irradiance"] = s[..., 1:2].copy()
+        out["Irradiance"] = frame.read(irradiance_sum, 3).copy()
     return {name: out[name] for name, *_ in passes.render_passes(frame.settings)}

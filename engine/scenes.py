@@ -446,6 +446,7 @@ def build(name: str, *, resolution=(256, 256)) -> bpy.types.Scene:
     builder, _ = SCENES[name]
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
+    scene.name = name
     _setup_scene(scene, resolution)
     builder(scene)
     bpy.context.view_layer.update()

@@ -8,6 +8,7 @@ uniform sampler2D u_visibility;
 layout(rgba32f, binding = 0) uniform image2D u_combined;
 layout(rgba32f, binding = 1) uniform image2D u_unshadowed;
 layout(rg32f, binding = 2) uniform image2D u_visibility_sums;
+layout(rgba32f, binding = 3) uniform image2D u_irradiance;     // Σ E, for the Irradiance debug pass
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -18,4 +19,5 @@ void main() {
     imageStore(u_combined, px, imageLoad(u_combined, px) + vec4(radiance * v, 0.0));
     imageStore(u_unshadowed, px, imageLoad(u_unshadowed, px) + vec4(radiance, 0.0));
     imageStore(u_visibility_sums, px, imageLoad(u_visibility_sums, px) + vec4(e.a * v, e.a, 0.0, 0.0));
+    imageStore(u_irradiance, px, imageLoad(u_irradiance, px) + vec4(e.rgb, 0.0));
 }
