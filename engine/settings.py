@@ -11,7 +11,7 @@ class RenderSettings:
     technique: str = "PCSS"
     shadow_map_size: int = 1024          # texels along the longer side of every light's map
     bias: float = 1.0                    # depth bias in texels, scaled by the receiver slope
-    normal_offset: float = 1.0           # receiver offset along its geometric normal, in texels
+    normal_offset: float = 0.5           # receiver offset along its geometric normal, in texels
     # PCF
     pcf_radius: float = 2.0              # kernel radius in texels
     pcf_taps: int = 5                    # taps per side of the square kernel (bilinear each)

@@ -66,6 +66,7 @@ def test_reference_matches_the_closed_form(scene):
     err = np.abs(v - exact)[on_ground & (exact < 0.99)]
     assert err.size > 500
     # 256 samples quantise V in steps of 1/256; one texel of a 1024² map moves an edge by ~0.2 pixel here.
+    print("REFERENCE vs closed form: mean", err.mean(), "p99", np.percentile(err, 99))
     assert err.mean() < 0.01, err.mean()
     assert np.percentile(err, 99) < 0.06
 
