@@ -1,4 +1,4 @@
-"""Operators: export the current frame's Penumbra passes as a multilayer EXR."""
+"""Operators: export the current frame's Penumbra passes as a multilayer EXR; compare with Cycles."""
 from __future__ import annotations
 
 import bpy
@@ -33,4 +33,30 @@ class PENUMBRA_OT_export_exr(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
 
-classes = (PENUMBRA_OT_export_exr,)
+class PENUMBRA_OT_compare_cycles(bpy.types.Operator):
+    """Render the active scene with Penumbra and with Cycles (direct light) and report the visibility error
+    beside both times; writes the EXRs, a difference image and a JSON of the numbers"""
+    bl_idname = "penumbra.compare_cycles"
+    bl_label = "Compare with Cycles"
+    directory: StringProperty(subtype="DIR_PATH", default="//penumbra_compare")
+    samples: bpy.props.IntProperty(name="Cycles Samples", default=256, min=1, max=65536)
+
+    def execute(self, context):
+        from ..engine.compare import compare
+        from ..ui.properties import settings_from_scene
+        wm = context.window_manager
+        wm.progress_begin(0.0, 1.0)
+        try:
+            cmp = compare(context.scene, settings_from_scene(context.scene), samples=self.samples,
+                          out_dir=bpy.path.abspath(self.directory),
+                          on_progress=lambda fraction, message: wm.progress_update(fraction))
+        except (ValueError, RuntimeError) as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        self.report({"INFO"}, cmp.summary())
+        return {"FINISHED"}
+
+
+classes = (PENUMBRA_OT_export_exr, PENUMBRA_OT_compare_cycles)

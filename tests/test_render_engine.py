@@ -107,3 +107,11 @@ def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path):
         exr.write(str(target), {"Combined": np.ones((4, 4, 4), np.float32), "Bad": object()})
     assert target.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["keep.exr"]
+
+
+def test_compare_operator_reports_error_and_time(scene, tmp_path):
+    scene.penumbra.technique = "PCSS"
+    bpy.ops.penumbra.compare_cycles(directory=str(tmp_path), samples=16)
+    data = __import__("json").loads((tmp_path / "plane_pcss.json").read_text())
+    assert 0.0 <= data["metrics"]["mae_shadow"] < 0.2 and data["ours_ms"] > 0 and data["cycles_seconds"] > 0
+    assert (tmp_path / "plane_pcss_compare.png").exists()

@@ -43,6 +43,9 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
             for name in names:
                 box.prop(props, name)
         layout.prop(props, "debug_passes")
+        row = layout.row(align=True)
+        row.operator("penumbra.compare_cycles", icon="IMAGE_REFERENCE")
+        row.operator("penumbra.export_exr", icon="EXPORT")
 
 
 class DATA_PT_penumbra_light(PenumbraPanel, bpy.types.Panel):
