@@ -49,14 +49,17 @@ def _import_bpy():
 
 def parse_overrides(pairs: list[str]) -> dict:
     """`--set name=value` pairs, typed like the RenderSettings field they name."""
+    from .techniques import all_options
     defaults = RenderSettings()
+    options = all_options()
+    names = [n for n in RenderSettings.field_names() if n != "extras"] + list(options)
     out = {}
     for pair in pairs or []:
         name, sep, raw = pair.partition("=")
-        if not sep or name not in RenderSettings.field_names() or name == "extras":
-            raise SystemExit(f"penumbra: --set expects NAME=VALUE with NAME one of "
-                             f"{', '.join(n for n in RenderSettings.field_names() if n != 'extras')}; got '{pair}'")
-        kind = type(getattr(defaults, name))
+        if not sep or name not in names:
+            raise SystemExit(f"penumbra: --set expects NAME=VALUE with NAME one of {', '.join(names)}; "
+                             f"got '{pair}'")
+        kind = type(options[name].default) if name in options else type(getattr(defaults, name))
         try:
             out[name] = raw.lower() in ("1", "true", "yes", "on") if kind is bool else kind(raw)
         except ValueError:

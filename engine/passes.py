@@ -20,3 +20,7 @@ def render_passes(settings) -> Iterator[tuple[str, int, str, str]]:
     yield from BASE_PASSES
     if getattr(settings, "debug_passes", False):
         yield from DEBUG_PASSES
+        from .techniques import TECHNIQUES
+        technique = TECHNIQUES.get(getattr(settings, "technique", ""))
+        if technique is not None:
+            yield from technique.debug_passes

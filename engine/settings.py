@@ -25,10 +25,25 @@ class RenderSettings:
     seed: int = 0
     # passes beyond Combined/Depth/Visibility/Unshadowed
     debug_passes: bool = False
-    extras: dict = field(default_factory=dict)   # technique-specific settings added by later techniques
+    # Settings a technique declares itself (Technique.options), by option name; unset ones take defaults.
+    extras: dict = field(default_factory=dict)
 
     def with_(self, **changes) -> "RenderSettings":
-        return replace(self, **changes)
+        """A copy with fields changed; names of technique options go into `extras`."""
+        own = set(self.field_names())
+        extras = dict(self.extras)
+        extras.update({k: v for k, v in changes.items() if k not in own})
+        return replace(self, **{k: v for k, v in changes.items() if k in own}, extras=extras)
+
+    def option(self, name: str):
+        """Value of a technique option (Technique.options), its default when unset."""
+        if name in self.extras:
+            return self.extras[name]
+        from .techniques import all_options
+        try:
+            return all_options()[name].default
+        except KeyError:
+            raise KeyError(f"No technique declares an option '{name}'") from None
 
     @classmethod
     def field_names(cls) -> list[str]:
@@ -52,3 +67,9 @@ class RenderSettings:
         for name, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"Setting '{name}' = {getattr(self, name)} is out of range ({allowed})")
+        from .techniques import all_options
+        options = all_options()
+        for name, value in self.extras.items():
+            if name not in options:
+                raise ValueError(f"Unknown setting '{name}'")
+            options[name].check(value)

@@ -37,7 +37,9 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         col = layout.column(align=True)
         col.prop(props, "bias")
         col.prop(props, "normal_offset")
-        names = TECHNIQUE_SETTINGS.get(props.technique, ())
+        from ..engine.techniques import TECHNIQUES
+        technique = TECHNIQUES.get(props.technique)
+        names = TECHNIQUE_SETTINGS.get(props.technique, ()) + tuple(o.name for o in technique.options)
         if names:
             box = layout.column(heading=props.technique.title())
             for name in names:

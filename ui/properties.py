@@ -39,6 +39,24 @@ class PenumbraSceneSettings(bpy.types.PropertyGroup):
                                description="Also write the technique's debug passes")
 
 
+def _option_property(opt):
+    """A Blender property for a technique's Option."""
+    common = dict(name=opt.label, description=opt.description)
+    if opt.items:
+        return EnumProperty(items=[tuple(i) for i in opt.items], default=opt.default, **common)
+    if isinstance(opt.default, bool):
+        return BoolProperty(default=opt.default, **common)
+    bounds = {k: v for k, v in (("min", opt.min), ("max", opt.max)) if v is not None}
+    if isinstance(opt.default, int):
+        return IntProperty(default=opt.default, **{k: int(v) for k, v in bounds.items()}, **common)
+    return FloatProperty(default=opt.default, **bounds, **common)
+
+
+for _technique in TECHNIQUES.values():
+    for _opt in _technique.options:
+        PenumbraSceneSettings.__annotations__[_opt.name] = _option_property(_opt)
+
+
 class PenumbraObjectSettings(bpy.types.PropertyGroup):
     role: EnumProperty(name="Shadow Role", default="BOTH", items=[
         ("BOTH", "Caster and Receiver", "Casts shadows and receives them"),
@@ -50,11 +68,13 @@ class PenumbraObjectSettings(bpy.types.PropertyGroup):
 def settings_from_scene(scene) -> RenderSettings:
     """RenderSettings from scene.penumbra (defaults where a field has no property)."""
     props = getattr(scene, "penumbra", None)
-    values = {}
-    for name in RenderSettings.field_names():
-        if props is not None and name in props.bl_rna.properties:
-            values[name] = getattr(props, name)
-    return RenderSettings(**values)
+    if props is None:
+        return RenderSettings()
+    values = {name: getattr(props, name) for name in RenderSettings.field_names()
+              if name in props.bl_rna.properties}
+    extras = {opt.name: getattr(props, opt.name) for t in TECHNIQUES.values() for opt in t.options
+              if opt.name in props.bl_rna.properties}
+    return RenderSettings(**values, extras=extras)
 
 
 classes = (PenumbraSceneSettings, PenumbraObjectSettings)

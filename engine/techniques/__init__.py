@@ -7,6 +7,11 @@ from .averaged import AveragedMaps
 TECHNIQUES = {t.identifier: t for t in (Hard(), Pcf(), Pcss(), AveragedMaps())}
 
 
+def all_options() -> dict:
+    """Every technique option by name."""
+    return {opt.name: opt for t in TECHNIQUES.values() for opt in t.options}
+
+
 def get(identifier: str):
     try:
         return TECHNIQUES[identifier]

@@ -7,6 +7,7 @@ the size of the image); pixels the light does not reach are ignored downstream.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 from ..lightview import LightView
 from ..snapshot import Light
@@ -26,11 +27,43 @@ class LightContext:
     debug: dict = field(default_factory=dict)   # name → (H, W) arrays for debug passes
 
 
+@dataclass(frozen=True)
+class Option:
+    """A setting a technique declares: becomes a scene.penumbra property, a `--set` name on the command line
+    and a RenderSettings.option() value. Prefix names with the technique (e.g. `bp_budget`)."""
+    name: str
+    default: Any                        # bool, int, float, or str for an enum
+    label: str
+    description: str = ""
+    min: float | None = None
+    max: float | None = None
+    items: tuple = ()                   # enum: ((identifier, label, description), …)
+
+    def check(self, value) -> None:
+        """Raise ValueError naming the option when `value` is not allowed."""
+        if self.items:
+            allowed = [i[0] for i in self.items]
+            if value not in allowed:
+                raise ValueError(f"Setting '{self.name}' = {value!r}: choose one of {', '.join(allowed)}")
+            return
+        if isinstance(self.default, bool):
+            if not isinstance(value, (bool, int)):
+                raise ValueError(f"Setting '{self.name}' expects true/false, got {value!r}")
+            return
+        if (self.min is not None and value < self.min) or (self.max is not None and value > self.max):
+            raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.min} … {self.max})")
+
+
 class Technique:
     identifier = ""
     label = ""
     description = ""
     needs: tuple[str, ...] = (DEPTH_MAP,)
+    options: tuple[Option, ...] = ()    # the technique's own settings
+    debug_passes: tuple = ()            # (name, channels, channel ids, Blender type) written with debug on
+    # Configurations the benchmark's --sweep traces (settings changes; RenderSettings fields or options).
+    sweep: tuple[dict, ...] = ({"shadow_map_size": 256}, {"shadow_map_size": 512}, {"shadow_map_size": 1024},
+                               {"shadow_map_size": 2048})
 
     def visibility(self, frame, lc: LightContext, out) -> None:
         raise NotImplementedError
