@@ -279,8 +279,11 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
         out.size_y = float(size_y * scale[1])
         if out.size_x <= 0.0 or out.size_y <= 0.0:
             warn(f"area light '{name}' has zero size: rendered as a point light (hard shadow)")
+        if float(getattr(light, "spread", math.pi)) < math.pi - 1e-6:
+            warn(f"area light '{name}' has a spread below 180°: rendered with the full 180° spread")
     elif kind in (POINT, SPOT):
         out.radius = float(light.shadow_soft_size)
+        out.use_soft_falloff = bool(getattr(light, "use_soft_falloff", True))
         if kind == SPOT:
             out.spot_size = float(light.spot_size)
             out.spot_blend = float(light.spot_blend)
@@ -294,7 +297,7 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
         if kind == AREA:
             area = out.area
         elif kind in (POINT, SPOT):
-            area = 4.0 * math.pi * out.radius ** 2 or 4.0
+            area = 4.0 * math.pi * out.radius ** 2 or 1.0     # a radius-0 point is unaffected
         elif kind == SUN:
             area = math.pi * math.sin(out.angle / 2.0) ** 2 if out.angle > 0 else 1.0
         else:

@@ -3,7 +3,9 @@
 Blender's power conventions (checked against Cycles in tests/test_irradiance_cycles.py, the numpy twin is
 engine/irradiance.py):
   area light, power P [W] over area A:   radiance L = P / (π·A)             (all of P leaves the front side)
-  sphere light, power P, radius r:       radiance L = P / (4π·r² · π)        (intensity P/(4π) W/sr)
+  sphere light, power P, radius r:       radiance L = P / (4π·r² · π)        (intensity P/(4π) W/sr);
+                                         with soft falloff (Blender's default) it emits from a disk of
+                                         radius r at its centre facing the receiver, else from a sphere
   point light, radius 0:                 intensity I = P / (4π)
   sun, strength S [W/m²], angle a:       irradiance S at normal incidence; as a disk of directions of
                                          half-angle a/2, L = S / (π·sin²(a/2))
@@ -27,6 +29,7 @@ def light_uniforms(light: Light) -> dict:
         "u_center": tuple(pos), "u_emit_dir": tuple(-z_axis), "u_axis_u": (0.0, 0.0, 0.0),
         "u_axis_v": (0.0, 0.0, 0.0), "u_sides": 4, "u_radius": 0.0, "u_one_sided": 0, "u_spot": 0,
         "u_spot_to_local": tuple(np.eye(3).ravel()), "u_spot_cos_half": -1.0, "u_spot_smooth": 0.0,
+        "u_soft_falloff": int(light.use_soft_falloff),
     }
     if light.kind == AREA and not light.is_delta:
         u.update(u_shape=LIGHT_POLYGON, u_one_sided=1,
@@ -57,3 +60,26 @@ def light_uniforms(light: Light) -> dict:
         u.update(u_spot=1, u_spot_cos_half=cos_half, u_spot_smooth=float((1.0 - cos_half) * light.spot_blend),
                  u_spot_to_local=tuple(to_local.T.ravel()))
     return u
+
+
+def irradiance_at(worker, light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """The shader's unoccluded irradiance at arbitrary points (N, 3) → (N, 3); runs on the GPU thread.
+    Used to check glsl/shading/irradiance.glsl against engine/irradiance.py."""
+    from .gpu.programs import program
+    ctx = worker.ctx
+    n = len(points)
+    pad = lambda a: np.c_[np.asarray(a, np.float32), np.zeros(n, np.float32)].tobytes()
+    bufs = [ctx.buffer(pad(points)), ctx.buffer(pad(normals)), ctx.buffer(reserve=16 * max(n, 1))]
+    try:
+        prog = program(worker, compute="shading/irradiance_points.comp")
+        for name, value in {**light_uniforms(light), "u_count": n}.items():
+            if name in prog:
+                prog[name].value = value
+        for binding, buf in enumerate(bufs):
+            buf.bind_to_storage_buffer(binding)
+        prog.run((n + 63) // 64)
+        ctx.finish()
+        return np.frombuffer(bufs[2].read(), np.float32).reshape(-1, 4)[:n, :3].astype(np.float64)
+    finally:
+        for buf in bufs:
+            buf.release()

@@ -33,6 +33,7 @@ class Light:
     spot_size: float = np.pi        # SPOT: full cone angle in radians
     spot_blend: float = 0.0         # SPOT: 0..1
     spot_scale: np.ndarray = field(default_factory=lambda: np.ones(3))  # SPOT: object scale (shapes the cone)
+    use_soft_falloff: bool = True   # POINT/SPOT: Cycles' soft falloff (emitter = disk facing the receiver)
     casts_shadow: bool = True
 
     @property

@@ -2,8 +2,9 @@
 // packs the uniforms; engine/irradiance.py is the same mathematics in numpy, checked against Cycles).
 //
 // Every extended light is a convex polygon of constant radiance seen from x: a rectangle, an N-gon for a
-// disk or ellipse, the tangency circle of a sphere (a sphere and the disk of its tangency circle subtend
-// the same cone of directions), or a disk of directions for the sun. The polygon is clipped to the
+// disk or ellipse, a disk for a point/spot light with a radius (Cycles' default "soft falloff" emits from a
+// disk of that radius at the light centre facing x; without it the light is a true sphere, whose tangency
+// circle subtends the same cone of directions), or a disk of directions for the sun. The polygon is clipped to the
 // receiver's upper hemisphere and integrated with Lambert's edge formula:
 //     E = L/2 · |Σ_i θ_i · n·ĝ_i|,  θ_i = angle between v_i and v_{i+1},  ĝ_i = normalize(v_i × v_{i+1}).
 
@@ -22,6 +23,7 @@ uniform vec3 u_emit_dir;       // unit emission axis (local -Z) in world space
 uniform float u_radius;        // sphere radius, or tan(angle/2) for the sun
 uniform vec3 u_radiance;       // polygon/sphere/sun radiance, or point intensity (W/sr), RGB
 uniform int u_one_sided;       // area lights emit only towards u_emit_dir
+uniform int u_soft_falloff;    // sphere lights: disk facing x (1) or true sphere (0)
 uniform int u_spot;            // spot cone applies
 uniform mat3 u_spot_to_local;  // world → spot-local with the object's scale folded in (Cycles' cone shape)
 uniform float u_spot_cos_half;
@@ -78,9 +80,10 @@ vec3 orthogonal(vec3 d) {
     return abs(d.z) < 0.9 ? normalize(cross(d, vec3(0, 0, 1))) : normalize(cross(d, vec3(0, 1, 0)));
 }
 
-// Cycles' spot cone: smoothstep over the blend band inside the cone, measured in the scaled spot frame.
-float spot_attenuation(vec3 x) {
-    vec3 dir = normalize(u_spot_to_local * (x - u_center));
+// Cycles' spot cone for a ray leaving the light along `d`: smoothstep over the blend band inside the
+// cone, measured in the spot frame divided by the object's scale (Cycles kernel/light/spot.h).
+float spot_attenuation(vec3 d) {
+    vec3 dir = normalize(u_spot_to_local * d);
     float c = -dir.z;
     if (c <= u_spot_cos_half) return 0.0;
     float t = c - u_spot_cos_half;
@@ -88,15 +91,34 @@ float spot_attenuation(vec3 x) {
     return 1.0;
 }
 
+// Cycles applies the cone per ray, so a spot with a radius averages it over its disk: 32 equal-area
+// cells, each weighted by its unoccluded contribution cosθ_x · cosθ_disk / d².
+float spot_over_disk(vec3 center, vec3 u, vec3 v, vec3 n) {
+    vec3 axis = normalize(center);
+    float sum = 0.0, weight = 0.0;
+    for (int ring = 0; ring < 4; ++ring) {
+        float r = sqrt((float(ring) + 0.5) / 4.0);
+        for (int sector = 0; sector < 8; ++sector) {
+            float phi = 6.28318530718 * (float(sector) + 0.5 * float(ring & 1)) / 8.0;
+            vec3 p = center + r * (cos(phi) * u + sin(phi) * v);
+            float d2 = max(dot(p, p), 1e-30);
+            vec3 w_dir = p * inversesqrt(d2);
+            float w = max(dot(n, w_dir), 0.0) * max(dot(axis, w_dir), 0.0) / d2;
+            sum += w * spot_attenuation(-p);
+            weight += w;
+        }
+    }
+    return weight > 0.0 ? sum / weight : spot_attenuation(-center);
+}
+
 vec3 light_irradiance(vec3 x, vec3 n) {
     vec3 to_light = u_center - x;
-    float spot = u_spot == 1 ? spot_attenuation(x) : 1.0;
-    if (spot <= 0.0) return vec3(0.0);
     if (u_shape == LIGHT_POLYGON) {
         if (u_one_sided == 1 && dot(x - u_center, u_emit_dir) <= 0.0) return vec3(0.0);
         return u_radiance * (0.5 * clipped_polygon_sum(to_light, u_axis_u, u_axis_v, u_sides, n));
     }
     if (u_shape == LIGHT_POINT) {
+        float spot = u_spot == 1 ? spot_attenuation(-to_light) : 1.0;
         float d2 = max(dot(to_light, to_light), 1e-30);
         float lobe = u_one_sided == 1 ? max(dot(-to_light, u_emit_dir), 0.0) / sqrt(d2) : 1.0;
         return u_radiance * spot * lobe * max(dot(n, to_light), 0.0) / (d2 * sqrt(d2));
@@ -110,6 +132,11 @@ vec3 light_irradiance(vec3 x, vec3 n) {
         dir = -u_emit_dir;                       // a disk of directions at unit distance
         center = dir;
         rho = u_radius;
+    } else if (u_soft_falloff == 1) {
+        float d = length(to_light);
+        dir = d > 0.0 ? to_light / d : n;        // disk of radius r at the centre, facing x
+        center = to_light;
+        rho = u_radius;
     } else {
         float d = length(to_light);
         d = max(d, u_radius * 1.0001 + 1e-30);   // inside the sphere: clamp to its surface
@@ -118,7 +145,9 @@ vec3 light_irradiance(vec3 x, vec3 n) {
         center = dir * ((d * d - r2) / d);       // tangency circle: centre and radius
         rho = u_radius * sqrt(max(d * d - r2, 0.0)) / d;
     }
-    vec3 u = orthogonal(dir);
+    vec3 u = orthogonal(dir) * rho;
     vec3 v = cross(dir, u);
-    return u_radiance * spot * (0.5 * clipped_polygon_sum(center, u * rho, v * rho, 32, n));
+    float spot = u_spot == 1 ? spot_over_disk(center, u, v, n) : 1.0;
+    if (spot <= 0.0) return vec3(0.0);
+    return u_radiance * spot * (0.5 * clipped_polygon_sum(center, u, v, 32, n));
 }

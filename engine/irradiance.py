@@ -1,0 +1,268 @@
+"""Reference (numpy) unoccluded irradiance of one Blender light, matching Cycles (Blender 5.0).
+
+`irradiance(light, points, normals)` returns E(x) in W/m² per RGB channel for a Lambertian receiver:
+Cycles' diffuse radiance leaving x is albedo/π · E(x) (direct light only, no shadows).
+
+Every light is treated as a polygon of constant radiance L seen from x, integrated with Lambert's
+formula after clipping the polygon to the receiver's upper hemisphere (n·v > 0):
+
+    E = L/2 · Σ_i acos(v̂_i·v̂_{i+1}) · n·normalize(v_i × v_{i+1})
+
+with the vertices v_i (relative to x) wound counter-clockwise about the axis pointing from x towards
+the light (so the sum is positive). Round shapes are regular N-gons whose area equals the ellipse's.
+
+Conventions, all measured against Cycles 5.0 (see tests/test_irradiance_cycles.py):
+  AREA   L = P / (π·A)   one-sided (emits towards local -Z only), Lambertian; A = world area with the
+         object scale applied (size·scale_x × size_y·scale_y, ×π/4 for DISK/ELLIPSE).
+  POINT  r = 0: I = P / (4π) W/sr, E = I·cosθ / d².  r > 0: emitter radiance L = P / (π · 4πr²)
+         (so I = P/(4π) far away). The radius is NOT scaled by the object scale.
+  SPOT   as POINT, times the cone attenuation of `spot_attenuation` (no extra cosine); with r > 0
+         Cycles evaluates the cone per ray, so it is averaged over the emitter here.
+  SUN    angle 0: E = S·cosθ.  angle α > 0: a cone of directions of half angle β = α/2 with
+         L = S / (π sin²β), i.e. E = S when facing the sun.
+`light.power` already holds energy · 2^exposure (exposure verified) and `light.color` any
+temperature tint. Optional attributes, read with getattr (absent → Blender's default):
+  light.use_soft_falloff (POINT/SPOT, default True): True → the emitter is a disk of radius r at the
+      light centre facing x (Cycles' "soft falloff"; facing receiver E = I/(d² + r²), smooth through
+      d = 0); False → a true sphere (E = I/d² for d > r, E = π·L = I/r² inside it, no spot cone
+      inside). They differ by the factor d²/(d²+r²): −6 % at d = 4r, −1 % at d = 10r.
+  light.normalize (default True): False → the power is not divided by the emitter area:
+      AREA and POINT/SPOT with r > 0: L = P / π;  SUN with α > 0: L = S;  delta lights unaffected.
+AREA `spread` < 180° (Cycles narrows the emission lobe) is not modelled: full 180° assumed.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
+
+_EPS = 1e-12
+ROUND_SIDES = 64
+CHUNK = 8192
+
+
+def _normalize(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(n, _EPS)
+
+
+def _edge_term(a: np.ndarray, b: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """acos(â·b̂) · n·normalize(a×b) for (N,3) arrays; 0 for degenerate edges."""
+    an, bn = _normalize(a), _normalize(b)
+    cos = np.clip(np.sum(an * bn, axis=-1), -1.0, 1.0)
+    theta = np.arccos(cos)
+    c = np.cross(a, b)
+    cl = np.linalg.norm(c, axis=-1)
+    proj = np.sum(c * n, axis=-1) / np.maximum(cl, _EPS)
+    return np.where(cl > _EPS * _EPS, theta * proj, 0.0)
+
+
+def polygon_form_factor(verts: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Σ-term of Lambert's formula, divided by 2, i.e. E/L for a polygon clipped to n·v > 0.
+
+    verts: (N, K, 3) polygon vertices relative to each receiver point, convex (wound CCW about the
+    direction from the point towards the polygon gives a positive sum; the result takes |Σ|);
+    normals: (N, 3) unit. Returns (N,) ≥ 0.
+    """
+    n = normals
+    K = verts.shape[1]
+    d = np.einsum("nkc,nc->nk", verts, n)  # signed heights above the tangent plane
+    total = np.zeros(verts.shape[0])
+    exit_pt = np.zeros_like(n)
+    entry_pt = np.zeros_like(n)
+    has_exit = np.zeros(verts.shape[0], bool)
+    has_entry = np.zeros(verts.shape[0], bool)
+    for i in range(K):
+        j = (i + 1) % K
+        a, b = verts[:, i], verts[:, j]
+        da, db = d[:, i], d[:, j]
+        ina, inb = da > 0.0, db > 0.0
+        # point where the edge crosses the tangent plane (only used when exactly one end is inside)
+        denom = da - db
+        t = np.where(np.abs(denom) > _EPS, da / np.where(np.abs(denom) > _EPS, denom, 1.0), 0.0)
+        cross_pt = a + t[:, None] * (b - a)
+        leaving = ina & ~inb
+        entering = ~ina & inb
+        s = np.where(entering[:, None], cross_pt, a)  # clipped segment start
+        e = np.where(leaving[:, None], cross_pt, b)  # clipped segment end
+        total += np.where(ina | inb, _edge_term(s, e, n), 0.0)
+        exit_pt = np.where(leaving[:, None], cross_pt, exit_pt)
+        entry_pt = np.where(entering[:, None], cross_pt, entry_pt)
+        has_exit |= leaving
+        has_entry |= entering
+    # the clipped polygon is closed along the horizon, from the exit point back to the entry point
+    closing = has_exit & has_entry
+    total += np.where(closing, _edge_term(exit_pt, entry_pt, n), 0.0)
+    # the clipped polygon is one convex region, so |Σ| is right for either winding
+    return 0.5 * np.abs(total)
+
+
+def _round_polygon(rx, ry, sides: int = ROUND_SIDES) -> np.ndarray:
+    """(sides, 2) CCW regular polygon inscribed-scaled so its area equals π·rx·ry."""
+    k = np.sqrt(2.0 * np.pi / (sides * np.sin(2.0 * np.pi / sides)))
+    phi = 2.0 * np.pi * (np.arange(sides) + 0.5) / sides
+    return np.stack([k * rx * np.cos(phi), k * ry * np.sin(phi)], axis=-1)
+
+
+def _rect_polygon(hx, hy) -> np.ndarray:
+    return np.array([[hx, -hy], [hx, hy], [-hx, hy], [-hx, -hy]], dtype=np.float64)
+
+
+def _disk_facing(centre: np.ndarray, radius: np.ndarray, axis: np.ndarray,
+                 sides: int = ROUND_SIDES) -> np.ndarray:
+    """(N, sides, 3) disk polygons (absolute positions) centred at `centre` (N,3), radius (N,), with
+    normal `axis` (N,3, unit, pointing away from the receiver), wound CCW about `axis`."""
+    t, b = _disk_frame(axis)
+    poly = _round_polygon(1.0, 1.0, sides)  # (sides, 2)
+    return (centre[:, None, :]
+            + radius[:, None, None] * (poly[None, :, 0:1] * t[:, None, :] + poly[None, :, 1:2] * b[:, None, :]))
+
+
+def spot_attenuation(light: Light, directions: np.ndarray) -> np.ndarray:
+    """Cycles' spot cone factor for unit `directions` (N,3) from the light towards the receiver.
+
+    Cycles (kernel/light/spot.h): the direction is taken to the light's local frame and divided by the
+    object scale per axis, then renormalised: w = normalize(d·X/sx, d·Y/sy, d·(-Z)/sz);
+    att = smoothstep((w.z − cos(spot_size/2)) / ((1 − cos(spot_size/2))·spot_blend)), with
+    smoothstep(t) = 3t² − 2t³ on [0,1] (clamped). No cosine factor. blend 0 → hard edge.
+    """
+    m = light.matrix
+    s = np.maximum(np.abs(np.asarray(light.spot_scale, np.float64)), _EPS)
+    local = np.stack([directions @ m[:3, 0] / s[0],
+                      directions @ m[:3, 1] / s[1],
+                      -(directions @ m[:3, 2]) / s[2]], axis=-1)
+    wz = _normalize(local)[:, 2]
+    cos_half = np.cos(0.5 * light.spot_size)
+    width = (1.0 - cos_half) * light.spot_blend
+    if width > 0.0:
+        t = np.clip((wz - cos_half) / width, 0.0, 1.0)
+        return t * t * (3.0 - 2.0 * t)
+    return (wz > cos_half).astype(np.float64)
+
+
+def _disk_frame(axis: np.ndarray):
+    helper = np.where(np.abs(axis[:, 2:3]) < 0.9, np.array([0.0, 0.0, 1.0]), np.array([1.0, 0.0, 0.0]))
+    t = _normalize(np.cross(helper, axis))
+    return t, np.cross(axis, t)
+
+
+def _disk_cell_centres(centre, radius, axis, rings: int, sectors: int) -> np.ndarray:
+    """(N, rings·sectors, 3) centres of equal-area cells (rings × sectors) of the disk."""
+    t, b = _disk_frame(axis)
+    edges = np.sqrt(np.linspace(0.0, 1.0, rings + 1))
+    rad = np.sqrt(0.5 * (edges[:-1] ** 2 + edges[1:] ** 2))  # splits each ring's area in half
+    phi = 2.0 * np.pi * (np.arange(sectors) + 0.5) / sectors
+    u = (rad[:, None] * np.cos(phi)[None, :]).reshape(-1)
+    v = (rad[:, None] * np.sin(phi)[None, :]).reshape(-1)
+    return centre[:, None, :] + radius[:, None, None] * (u[None, :, None] * t[:, None, :]
+                                                         + v[None, :, None] * b[:, None, :])
+
+
+# Spot lights with a radius: the cone attenuation is evaluated per ray in Cycles, so it is averaged
+# over the emitter (disk split into SPOT_RINGS × SPOT_SECTORS equal-area cells).
+SPOT_RINGS, SPOT_SECTORS = 4, 16
+
+
+def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """E per unit colour for a POINT or SPOT light (spot attenuation included), (N,) array."""
+    P = float(light.power)
+    c = light.position
+    to_l = c[None, :] - x
+    d2 = np.sum(to_l * to_l, axis=-1)
+    d = np.sqrt(d2)
+    axis = to_l / np.maximum(d, _EPS)[:, None]
+    is_spot = light.kind == SPOT
+    r = float(light.radius)
+    if r <= 0.0:
+        # delta light: intensity I = P/(4π) W/sr, E = I·cosθ / d²   (measured against Cycles)
+        cos = np.maximum(np.sum(axis * n, axis=-1), 0.0)
+        e = np.where(d2 > _EPS, P / (4.0 * np.pi) * cos / np.maximum(d2, _EPS), 0.0)
+        return e * spot_attenuation(light, -axis) if is_spot else e
+    # sphere of radius r: L = P / (π · 4πr²) (normalize=True) or L = P / π (normalize=False),
+    # measured against Cycles. So I = P/(4π) far away, as for r = 0.
+    if getattr(light, "normalize", True):
+        radiance = P / (np.pi * 4.0 * np.pi * r * r)
+    else:
+        radiance = P / np.pi
+    inside = d <= r
+    if getattr(light, "use_soft_falloff", True):
+        # soft falloff (Blender's default): the light is a disk of radius r at the centre, facing x
+        centre = np.broadcast_to(c, x.shape)
+        rr = np.full(x.shape[0], r)
+        inside = np.zeros_like(inside)
+    else:
+        # true sphere == the disk of its tangency circle: radius r·sqrt(d²−r²)/d at distance (d²−r²)/d
+        dd = np.maximum(d, r * (1.0 + 1e-9))
+        centre = x + axis * ((dd * dd - r * r) / dd)[:, None]
+        rr = r * np.sqrt(dd * dd - r * r) / dd
+    if not is_spot:
+        ff = polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n)
+    else:
+        # Cycles evaluates the cone per ray (direction from the emitter sample towards x, no cosine),
+        # so average the attenuation over equal-area cells of the disk, weighted by each cell's
+        # point-approximated form factor cos_x·cos_disk/dist², times the exact disk form factor.
+        cells = _disk_cell_centres(centre, rr, axis, SPOT_RINGS, SPOT_SECTORS)  # (N, C, 3)
+        q = cells - x[:, None, :]
+        q2 = np.maximum(np.sum(q * q, axis=-1), _EPS)
+        qn = q / np.sqrt(q2)[..., None]
+        w = (np.maximum(np.einsum("ncj,nj->nc", qn, n), 0.0)
+             * np.maximum(np.einsum("ncj,nj->nc", qn, axis), 0.0) / q2)
+        att = spot_attenuation(light, -qn.reshape(-1, 3)).reshape(q2.shape)
+        mean_att = np.sum(w * att, axis=1) / np.maximum(np.sum(w, axis=1), _EPS)
+        ff = polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n) * mean_att
+    e = radiance * ff
+    # inside a true sphere the whole hemisphere has radiance L, and Cycles skips the spot cone
+    return np.where(inside, radiance * np.pi, e)
+
+
+def irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Unoccluded irradiance (N,3) float64 RGB at `points` (N,3) with unit `normals` (N,3)."""
+    x = np.asarray(points, np.float64).reshape(-1, 3)
+    n = _normalize(np.asarray(normals, np.float64).reshape(-1, 3))
+    if x.shape[0] > CHUNK:  # bound the temporaries (N × polygon vertices × 3)
+        return np.concatenate([irradiance(light, x[i:i + CHUNK], n[i:i + CHUNK])
+                               for i in range(0, x.shape[0], CHUNK)], axis=0)
+    color = np.asarray(light.color, np.float64).reshape(3)
+    P = float(light.power)
+    m = np.asarray(light.matrix, np.float64)
+    N = x.shape[0]
+    if N == 0 or P == 0.0:
+        return np.zeros((N, 3))
+
+    if light.kind == AREA:
+        sx, sy = float(light.size_x), float(light.size_y)
+        if sx <= 0.0 or sy <= 0.0:
+            return np.zeros((N, 3))
+        area = light.area
+        # area light: L = P / (π·A), measured against Cycles (normalize=False: L = P/π)
+        radiance = P / (np.pi * area) if getattr(light, "normalize", True) else P / np.pi
+        if light.shape in (DISK, ELLIPSE):
+            local = _round_polygon(0.5 * sx, 0.5 * sy)
+        else:
+            local = _rect_polygon(0.5 * sx, 0.5 * sy)
+        world = m[:3, 3] + local[:, 0:1] * m[:3, 0] + local[:, 1:2] * m[:3, 1]  # (K,3)
+        verts = world[None, :, :] - x[:, None, :]
+        # emits towards local -Z only: receivers must be strictly on the -Z side
+        front = (x - m[:3, 3]) @ m[:3, 2] < 0.0
+        # CCW about local +Z == CCW about the direction from a front receiver to the light
+        e = np.where(front, radiance * polygon_form_factor(verts, n), 0.0)
+    elif light.kind in (POINT, SPOT):
+        e = _sphere_light(light, x, n)
+    elif light.kind == SUN:
+        to_sun = m[:3, 2]  # light travels along -Z, so the sun is towards +Z
+        beta = 0.5 * float(light.angle)
+        if beta <= 0.0:
+            e = P * np.maximum(n @ to_sun, 0.0)  # sun: E = S·cosθ
+        else:
+            # sun with angle: cone of half angle β (a disk of radius tanβ at unit distance) of
+            # radiance L = S / (π sin²β), so that E = S at normal incidence; measured against Cycles
+            tb = np.tan(min(beta, 0.5 * np.pi - 1e-6))
+            sb = np.sin(beta)
+            radiance = P / (np.pi * sb * sb) if getattr(light, "normalize", True) else P
+            axis = np.broadcast_to(to_sun, x.shape)
+            poly = _disk_facing(axis.copy(), np.full(N, tb), np.ascontiguousarray(axis))
+            e = radiance * polygon_form_factor(poly, n)
+    else:
+        raise ValueError(f"unknown light kind {light.kind!r}")
+    e = np.where(np.isfinite(e), e, 0.0)
+    return e[:, None] * color[None, :]
