@@ -87,6 +87,7 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
     caster_objects = np.array([o.caster for o in snap.objects], bool)
     object_bounds = snap.object_bounds()
     has_casters = bool(snap.caster_mask().any())
+    debug: dict = {}
     stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
              "covered_pixels": int(covered.sum()), "technique": technique.identifier}
     if not snap.lights:
@@ -127,6 +128,8 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
                     lc.structures[DEPTH_MAP] = frame.render_depth_map(view)
             with t.stage("visibility"):
                 technique.visibility(frame, lc, visibility)
+            for name, array in lc.debug.items():    # several lights: keep the per-pixel maximum
+                debug[name] = array if name not in debug else np.maximum(debug[name], array)
         with t.stage("accumulate"):
             frame.dispatch("shading/accumulate.comp", samplers={"g_irradiance": irradiance,
                            "u_visibility": visibility},
@@ -134,11 +137,11 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
         frame.progress.step(1.0, f"{light.name}: done")
 
     with t.stage("readback"):
-        out = _finish(frame, combined, unshadowed, sums, irradiance_sum, covered)
+        out = _finish(frame, combined, unshadowed, sums, irradiance_sum, covered, debug)
     return FrameResult(out, dict(t), warnings, stats)
 
 
-def _finish(frame: Frame, combined, unshadowed, sums, irradiance_sum, covered) -> dict:
+def _finish(frame: Frame, combined, unshadowed, sums, irradiance_sum, covered, debug: dict) -> dict:
     s = frame.read(sums)
     with np.errstate(divide="ignore", invalid="ignore"):
         vis = np.where(s[..., 1] > 0.0, s[..., 0] / s[..., 1], 1.0)
@@ -154,4 +157,10 @@ def _finish(frame: Frame, combined, unshadowed, sums, irradiance_sum, covered) -
     }
     if frame.settings.debug_passes:
         out["Irradiance"] = frame.read(irradiance_sum, 3).copy()
-    return {name: out[name] for name, *_ in passes.render_passes(frame.settings)}
+    result = {}
+    for name, channels, *_ in passes.render_passes(frame.settings):
+        array = out.get(name, debug.get(name))
+        if array is None:       # a technique debug pass no light produced
+            array = np.zeros((frame.height, frame.width, channels), np.float32)
+        result[name] = np.asarray(array, np.float32).reshape(frame.height, frame.width, channels)
+    return result

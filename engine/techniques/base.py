@@ -24,7 +24,9 @@ class LightContext:
     casters: tuple | None               # world AABB of the casters, None when there are none
     uniforms: dict                      # light-view uniforms plus bias settings
     structures: dict = field(default_factory=dict)
-    debug: dict = field(default_factory=dict)   # name → (H, W) arrays for debug passes
+    # Debug passes this light produced: name → (H, W, C) float32 array (row 0 at the bottom). With several
+    # lights the pipeline keeps the per-pixel maximum.
+    debug: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
