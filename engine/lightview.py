@@ -140,6 +140,9 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
         near, far = c_depth.min(), max(r_depth.max(), c_depth.max())
         pad_z = max(far - near, 1e-6 * extent) * 0.01
         near, far = near - pad_z, far + pad_z
+    elif (-cas[:, 2] <= near_floor).any():
+        near = near_floor       # the casters reach the light plane (or surround the light): keep them all
+        far = max(r_depth.max(), c_depth.max()) * 1.02 + near_floor
     else:
         near = max(min(c_depth.min(), r_depth.min()) * 0.98, near_floor)
         far = max(r_depth.max(), c_depth.max()) * 1.02 + near_floor

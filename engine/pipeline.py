@@ -14,7 +14,8 @@ import numpy as np
 
 from . import lightview, passes
 from .gpu.context import GpuWorker, Job
-from .gpu.frame import Frame, GpuGeometry
+from .gpu.frame import Frame
+from .gpu.geometry import SceneGeometry
 from .settings import RenderSettings
 from .shading import light_uniforms
 from .snapshot import SceneSnapshot
@@ -58,7 +59,7 @@ def render(snap: SceneSnapshot, settings: RenderSettings, *, on_progress=None, s
 
 
 def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
-               geometry: GpuGeometry | None = None) -> FrameResult:
+               geometry: SceneGeometry | None = None) -> FrameResult:
     technique = get_technique(settings.technique)
     warnings = list(snap.warnings)
     frame = Frame(worker, snap, settings, geometry)
@@ -85,8 +86,8 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
         position = frame.read(frame.gbuffer["g_position"])
     covered = position[..., 3] > 0.0
     caster_objects = np.array([o.caster for o in snap.objects], bool)
-    object_bounds = snap.object_bounds()
-    has_casters = bool(snap.caster_mask().any())
+    object_bounds = frame.geometry.object_bounds()
+    has_casters = frame.geometry.has_casters
     debug: dict = {}
     stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
              "covered_pixels": int(covered.sum()), "technique": technique.identifier}

@@ -18,7 +18,7 @@ class RenderSettings:
     # PCSS (Fernando 2005)
     pcss_blocker_samples: int = 32
     pcss_filter_samples: int = 64
-    pcss_max_radius: float = 96.0        # cap on search and filter radius, in texels
+    pcss_max_radius: float = 0.1         # cap on search and filter radius, as a fraction of the map size
     # REFERENCE: average of N hard shadow maps from stratified points on the light
     reference_samples: int = 64
     reference_weighted: bool = True      # weight each sample by its unoccluded contribution at the pixel
@@ -62,6 +62,7 @@ class RenderSettings:
             ("pcss_blocker_samples", 1 <= self.pcss_blocker_samples <= 1024, "1 … 1024"),
             ("pcss_filter_samples", 1 <= self.pcss_filter_samples <= 4096, "1 … 4096"),
             ("bias", 0.0 <= self.bias <= 100.0, "0 … 100"),
+            ("pcss_max_radius", 0.0 < self.pcss_max_radius <= 1.0, "0 … 1"),
             ("normal_offset", 0.0 <= self.normal_offset <= 100.0, "0 … 100"),
         ]
         for name, ok, allowed in checks:

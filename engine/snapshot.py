@@ -131,10 +131,18 @@ class SceneSnapshot:
         out[:, 0], out[:, 1] = np.inf, -np.inf
         if self.triangle_count == 0:
             return out
-        lo, hi = self.positions.min(axis=1), self.positions.max(axis=1)
+        # Degenerate (zero-area or non-finite) triangles draw nothing, so they must not stretch the bounds.
+        p = self.positions
+        with np.errstate(invalid="ignore", over="ignore"):
+            area2 = np.square(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])).sum(axis=1)
+        valid = np.isfinite(area2) & (area2 > 0.0)
+        if not valid.any():
+            return out
+        p, object_id = p[valid], self.object_id[valid]
+        lo, hi = p.min(axis=1), p.max(axis=1)
         # Triangles arrive in runs per object: reduce each run, then fold runs of the same object.
-        starts = np.flatnonzero(np.r_[True, self.object_id[1:] != self.object_id[:-1]])
-        ids = self.object_id[starts]
+        starts = np.flatnonzero(np.r_[True, object_id[1:] != object_id[:-1]])
+        ids = object_id[starts]
         np.minimum.at(out[:, 0], ids, np.minimum.reduceat(lo, starts))
         np.maximum.at(out[:, 1], ids, np.maximum.reduceat(hi, starts))
         return out

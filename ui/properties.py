@@ -28,8 +28,8 @@ class PenumbraSceneSettings(bpy.types.PropertyGroup):
                           description="Taps per side of the PCF kernel")
     pcss_blocker_samples: IntProperty(name="Blocker Samples", default=_D.pcss_blocker_samples, min=1, max=1024)
     pcss_filter_samples: IntProperty(name="Filter Samples", default=_D.pcss_filter_samples, min=1, max=4096)
-    pcss_max_radius: FloatProperty(name="Max Radius", default=_D.pcss_max_radius, min=1.0, max=1024.0,
-                                   description="Cap on the search and filter radius, in texels")
+    pcss_max_radius: FloatProperty(name="Max Radius", default=_D.pcss_max_radius, min=0.001, max=1.0,
+                                   description="Cap on the search and filter radius, as a fraction of the shadow map")
     reference_samples: IntProperty(name="Light Samples", default=_D.reference_samples, min=1, max=4096,
                                    description="Hard shadow maps averaged per light")
     reference_weighted: BoolProperty(name="Weighted", default=_D.reference_weighted,

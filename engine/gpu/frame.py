@@ -9,6 +9,7 @@ import numpy as np
 
 from ..lightview import LightView
 from ..snapshot import SceneSnapshot
+from .geometry import SceneGeometry, SoupGeometry
 from .programs import program
 
 NO_OCCLUDER = 3.0e38    # depth-map value where nothing was drawn
@@ -39,33 +40,10 @@ class Timings(dict):
             self[name] = self.get(name, 0.0) + elapsed - inner
 
 
-class GpuGeometry:
-    """The snapshot's triangles in one vertex buffer (position, normal, albedo) with index buffers for the
-    camera's receivers and the lights' casters, so each pass draws only what it should see."""
-
-    def __init__(self, ctx, snap: SceneSnapshot):
-        t = snap.triangle_count
-        vertices = np.empty((t, 3, 9), np.float32)
-        vertices[..., 0:3] = snap.positions
-        vertices[..., 3:6] = snap.normals
-        vertices[..., 6:9] = snap.albedo[:, None, :]
-        self.vbo = ctx.buffer(vertices.tobytes() if t else np.zeros(9, np.float32).tobytes())
-        corner = np.arange(3 * t, dtype=np.uint32).reshape(t, 3)
-        self.receiver_count = int(snap.receiver_mask().sum()) if t else 0
-        self.caster_count = int(snap.caster_mask().sum()) if t else 0
-        self.receiver_ibo = ctx.buffer(corner[snap.receiver_mask()].tobytes() or b"\0" * 12)
-        self.caster_ibo = ctx.buffer(corner[snap.caster_mask()].tobytes() or b"\0" * 12)
-        self.nbytes = self.vbo.size
-
-    def release(self):
-        for buf in (self.vbo, self.receiver_ibo, self.caster_ibo):
-            buf.release()
-
-
 class Frame:
     """Everything a technique needs on the GPU for one camera image."""
 
-    def __init__(self, worker, snap: SceneSnapshot, settings, geometry: GpuGeometry | None = None):
+    def __init__(self, worker, snap: SceneSnapshot, settings, geometry: SceneGeometry | None = None):
         self.worker = worker
         self.ctx = ctx = worker.ctx
         self.snap = snap
@@ -76,7 +54,7 @@ class Frame:
         self.progress = None            # pipeline.Progress, set by the pipeline
         self.bias_uniforms: dict = {}   # u_bias / u_normal_offset, shared by every technique
         with self.timings.stage("upload"):
-            self.geometry = geometry or self._own(GpuGeometry(ctx, snap))
+            self.geometry = geometry or self._own(SoupGeometry(ctx, snap))
         self._depth_targets: dict = {}
         self.gbuffer = self._render_gbuffer()
 
@@ -106,18 +84,14 @@ class Frame:
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             ctx.enable(ctx.DEPTH_TEST)
             ctx.disable(ctx.CULL_FACE)
-            if self.geometry.receiver_count:
-                prog = program(self.worker, "common/gbuffer.vert", "common/gbuffer.frag")
-                inv_view = np.linalg.inv(cam.view)
-                _set(prog, {
-                    "u_view": _mat(cam.view), "u_view_proj": _mat(cam.projection @ cam.view),
-                    "u_camera_position": tuple(inv_view[:3, 3]), "u_camera_ortho": int(cam.is_ortho),
-                    "u_camera_forward": tuple(-inv_view[:3, 2]),
-                })
-                vao = ctx.vertex_array(prog, [(self.geometry.vbo, "3f 3f 3f", "in_position", "in_normal",
-                                               "in_albedo")], self.geometry.receiver_ibo, index_element_size=4)
-                vao.render(vertices=3 * self.geometry.receiver_count)
-                vao.release()
+            prog = program(self.worker, "common/gbuffer.vert", "common/gbuffer.frag")
+            inv_view = np.linalg.inv(cam.view)
+            _set(prog, {
+                "u_view": _mat(cam.view), "u_view_proj": _mat(cam.projection @ cam.view),
+                "u_camera_position": tuple(inv_view[:3, 3]), "u_camera_ortho": int(cam.is_ortho),
+                "u_camera_forward": tuple(-inv_view[:3, 2]),
+            })
+            self.geometry.render(ctx, prog, "receiver")
         return g
 
     def read(self, tex, components: int | None = None) -> np.ndarray:
@@ -143,15 +117,12 @@ class Frame:
             tex, fbo = target
         fbo.use()
         fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0, depth=1.0)
-        if self.geometry.caster_count:
+        if self.geometry.has_casters:
             ctx.enable(ctx.DEPTH_TEST)
             ctx.disable(ctx.CULL_FACE)
             prog = program(self.worker, "common/depth.vert", "common/depth.frag")
             _set(prog, {"u_light_view": _mat(view.view), "u_light_view_proj": _mat(view.view_proj)})
-            vao = ctx.vertex_array(prog, [(self.geometry.vbo, "3f 24x", "in_position")],
-                                   self.geometry.caster_ibo, index_element_size=4)
-            vao.render(vertices=3 * self.geometry.caster_count)
-            vao.release()
+            self.geometry.render(ctx, prog, "caster", position_only=True)
         return tex
 
     def new_depth_target(self, view: LightView):

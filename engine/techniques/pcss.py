@@ -13,6 +13,6 @@ class Pcss(Technique):
         frame.dispatch("pcss/visibility.comp", {
             **lc.uniforms, **light_shape_uniforms(lc.light, lc.view),
             "u_blocker_samples": int(s.pcss_blocker_samples), "u_filter_samples": int(s.pcss_filter_samples),
-            "u_max_radius": float(s.pcss_max_radius)},
+            "u_max_radius": float(s.pcss_max_radius) * max(lc.view.width, lc.view.height)},
             samplers={"g_irradiance": lc.irradiance, "u_depth_map": lc.structures["depth_map"]},
             images={0: out})

@@ -3,10 +3,12 @@ in vec3 in_position;
 
 uniform mat4 u_light_view;
 uniform mat4 u_light_view_proj;
+uniform mat4 u_model = mat4(1.0);
 
 out float v_depth;
 
 void main() {
-    v_depth = -(u_light_view * vec4(in_position, 1.0)).z;
-    gl_Position = u_light_view_proj * vec4(in_position, 1.0);
+    vec4 world = u_model * vec4(in_position, 1.0);
+    v_depth = -(u_light_view * world).z;
+    gl_Position = u_light_view_proj * world;
 }

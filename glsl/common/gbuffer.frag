@@ -6,6 +6,7 @@ in float v_depth;
 uniform vec3 u_camera_position;
 uniform int u_camera_ortho;
 uniform vec3 u_camera_forward;
+uniform int u_mirrored = 0;     // the model matrix flips handedness, so front faces wind clockwise
 
 layout(location = 0) out vec4 g_position;   // xyz world, w = 1 where covered
 layout(location = 1) out vec4 g_normal;     // xyz shading normal facing the viewer, w = camera z-depth
@@ -21,7 +22,7 @@ void main() {
     if (dot(ng, to_eye) < 0.0) ng = -ng;
     // Surfaces are two-sided, as in Cycles: seen from the back, the shading normal flips with the face.
     vec3 ns = normalize(v_normal);
-    if (!gl_FrontFacing) ns = -ns;
+    if (gl_FrontFacing == (u_mirrored == 1)) ns = -ns;
     g_position = vec4(v_position, 1.0);
     g_normal = vec4(ns, v_depth);
     g_geometric = vec4(ng, 0.0);

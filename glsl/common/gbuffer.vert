@@ -5,6 +5,8 @@ in vec3 in_albedo;
 
 uniform mat4 u_view;
 uniform mat4 u_view_proj;
+uniform mat4 u_model = mat4(1.0);          // object → world (identity for world-space geometry)
+uniform mat3 u_normal_matrix = mat3(1.0);
 
 out vec3 v_position;
 out vec3 v_normal;
@@ -12,9 +14,10 @@ out vec3 v_albedo;
 out float v_depth;
 
 void main() {
-    v_position = in_position;
-    v_normal = in_normal;
+    vec4 world = u_model * vec4(in_position, 1.0);
+    v_position = world.xyz;
+    v_normal = u_normal_matrix * in_normal;
     v_albedo = in_albedo;
-    v_depth = -(u_view * vec4(in_position, 1.0)).z;
-    gl_Position = u_view_proj * vec4(in_position, 1.0);
+    v_depth = -(u_view * world).z;
+    gl_Position = u_view_proj * world;
 }
