@@ -60,6 +60,7 @@ def render(snap: SceneSnapshot, settings: RenderSettings, *, on_progress=None, s
 
 def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
                geometry: SceneGeometry | None = None) -> FrameResult:
+    job.check()
     technique = get_technique(settings.technique)
     warnings = list(snap.warnings)
     frame = Frame(worker, snap, settings, geometry)

@@ -24,7 +24,15 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
     bl_label = "Penumbra"
     bl_use_preview = False
     bl_use_postprocess = True
-    bl_use_eevee_viewport = True        # until the interactive viewport lands, Rendered shading uses EEVEE
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._viewport = None               # engine.viewport.ViewportSession, created on first view_update
+
+    def __del__(self):
+        viewport = getattr(self, "_viewport", None)
+        if viewport is not None:
+            viewport.free()
 
     def update_render_passes(self, scene=None, renderlayer=None):
         for name, channels, chan_id, kind in passes.render_passes(_settings(scene)):
@@ -72,9 +80,87 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
                 target.rect.foreach_set(array.reshape(-1))
         self.end_result(render_result)
 
+    # ---- interactive viewport -------------------------------------------------------------------------
+    def view_update(self, context, depsgraph):
+        """Scene changed: re-read only what the depsgraph reports (the first call reads everything)."""
+        from .viewport import ViewportSession
+        try:
+            if self._viewport is None:
+                self._viewport = ViewportSession()
+                self._viewport.sync(depsgraph)
+            else:
+                self._viewport.sync(depsgraph, depsgraph.updates)
+        except (GpuError, ShaderError, RuntimeError, ValueError) as exc:
+            self.report({"ERROR"}, f"Penumbra viewport: {exc}")
+
+    def view_draw(self, context, depsgraph):
+        """Draw the newest finished frame; ask for a new one when the view changed. Never waits for the GPU."""
+        import numpy as np
+        from ..ui.properties import viewport_settings
+        from .snapshot import Camera
+        session = self._viewport
+        if session is None:
+            return
+        scene, region, rv3d = depsgraph.scene, context.region, context.region_data
+        camera = Camera("Viewport", np.array(rv3d.view_matrix, np.float64),
+                        np.array(rv3d.window_matrix, np.float64), region.width, region.height,
+                        is_ortho=not rv3d.is_perspective)
+        props = scene.penumbra
+        try:
+            session.request(camera, viewport_settings(scene), coarse_map=props.viewport_coarse_map_size,
+                            coarse_scale=props.viewport_coarse_scale)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return
+        frame = session.latest
+        if frame is not None:
+            _draw_frame(self, scene, frame, props.viewport_pass, region.width, region.height)
+            self.update_stats("", f"Penumbra {'coarse' if frame.coarse else 'refined'} frame "
+                                  f"{frame.ms:.0f} ms")
+        if session.busy():
+            _redraw_when_done(self, session)
+
     def _fail(self, message: str):
         self.report({"ERROR"}, message)
         self.error_set(message)
+
+
+def _draw_frame(engine, scene, frame, pass_name, width, height):
+    """Upload the frame as a texture (created here, inside view_draw, as the gpu module requires) and draw it
+    through Blender's display-space shader, so colour management matches Cycles' viewport."""
+    import gpu
+    import numpy as np
+    from gpu_extras.presets import draw_texture_2d
+    data = frame.passes.get(pass_name, frame.passes["Combined"])
+    rgba = np.ones((frame.height, frame.width, 4), np.float32)
+    rgba[..., :3] = data[..., :3] if data.shape[-1] >= 3 else data[..., :1]
+    texture = gpu.types.GPUTexture((frame.width, frame.height), format="RGBA16F",
+                                   data=gpu.types.Buffer("FLOAT", rgba.size, rgba.ravel()))
+    gpu.state.blend_set("ALPHA_PREMULT")
+    engine.bind_display_space_shader(scene)
+    draw_texture_2d(texture, (0, 0), width, height)
+    engine.unbind_display_space_shader()
+    gpu.state.blend_set("NONE")
+
+
+def _redraw_when_done(engine, session):
+    """Poll from Blender's main thread (a timer) and redraw once the newest frame is in."""
+    import weakref
+    ref = weakref.ref(engine)
+    shown = session.latest
+
+    def poll():
+        target = ref()
+        if target is None:
+            return None
+        if session.latest is not shown:
+            try:
+                target.tag_redraw()
+            except ReferenceError:
+                return None
+            return None
+        return 0.02
+    bpy.app.timers.register(poll, first_interval=0.02)
 
 
 def register():

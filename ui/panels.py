@@ -50,6 +50,29 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         row.operator("penumbra.export_exr", icon="EXPORT")
 
 
+class RENDER_PT_penumbra_viewport(PenumbraPanel, bpy.types.Panel):
+    bl_label = "Viewport"
+    bl_context = "render"
+    bl_parent_id = "RENDER_PT_penumbra"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        props = context.scene.penumbra
+        layout.prop(props, "viewport_technique", text="Technique")
+        layout.prop(props, "viewport_map_size", text="Map Size")
+        col = layout.column(align=True, heading="First Frame")
+        col.prop(props, "viewport_coarse_map_size", text="Map Size")
+        col.prop(props, "viewport_coarse_scale", text="Resolution")
+        layout.prop(props, "viewport_pass", text="Pass")
+
+
+def draw_viewport_pass(self, context):
+    """Penumbra's pass selector in the 3D view's shading popover (Rendered mode)."""
+    if context.engine == ENGINE and context.space_data.shading.type == "RENDERED":
+        self.layout.prop(context.scene.penumbra, "viewport_pass", text="Render Pass")
+
+
 class DATA_PT_penumbra_light(PenumbraPanel, bpy.types.Panel):
     bl_label = "Penumbra"
     bl_context = "data"
@@ -102,7 +125,7 @@ class OBJECT_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         col.prop(obj, "visible_shadow", text="Shadow")
 
 
-classes = (RENDER_PT_penumbra, DATA_PT_penumbra_light, OBJECT_PT_penumbra)
+classes = (RENDER_PT_penumbra, RENDER_PT_penumbra_viewport, DATA_PT_penumbra_light, OBJECT_PT_penumbra)
 
 
 def _compatible_panels():
@@ -119,9 +142,11 @@ def register():
         bpy.utils.register_class(cls)
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.add(ENGINE)
+    bpy.types.VIEW3D_PT_shading.append(draw_viewport_pass)
 
 
 def unregister():
+    bpy.types.VIEW3D_PT_shading.remove(draw_viewport_pass)
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.discard(ENGINE)
     for cls in reversed(classes):

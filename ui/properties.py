@@ -37,6 +37,23 @@ class PenumbraSceneSettings(bpy.types.PropertyGroup):
     seed: IntProperty(name="Seed", default=_D.seed, min=0)
     debug_passes: BoolProperty(name="Debug Passes", default=_D.debug_passes,
                                description="Also write the technique's debug passes")
+    # The viewport's own quality (Rendered shading); final renders ignore these.
+    viewport_technique: EnumProperty(name="Viewport Technique", items=[
+        ("SAME", "Same as Render", "Use the final render's technique")] + [
+        (t.identifier, t.label, t.description) for t in TECHNIQUES.values()], default="SAME")
+    viewport_map_size: IntProperty(name="Viewport Map Size", default=1024, min=16, max=8192,
+                                   description="Shadow-map size of the viewport's refined frame")
+    viewport_coarse_map_size: IntProperty(name="First Frame Map Size", default=256, min=16, max=4096,
+                                          description="Shadow-map size of the quick frame drawn right after a "
+                                                      "change, before the refined one")
+    viewport_coarse_scale: FloatProperty(name="First Frame Resolution", default=0.5, min=0.1, max=1.0,
+                                         subtype="FACTOR", description="Resolution of the quick first frame, "
+                                                                       "relative to the viewport")
+    viewport_pass: EnumProperty(name="Viewport Pass", default="Combined", items=[
+        ("Combined", "Combined", "Shaded image"), ("Visibility", "Visibility", "Σ E·V / Σ E"),
+        ("Unshadowed", "Unshadowed", "Shading without shadows"),
+        ("Irradiance", "Irradiance (debug)", "Unoccluded irradiance, with debug passes on")],
+        description="Pass shown in the viewport's Rendered shading")
 
 
 def _option_property(opt):
@@ -75,6 +92,18 @@ def settings_from_scene(scene) -> RenderSettings:
     extras = {opt.name: getattr(props, opt.name) for t in TECHNIQUES.values() for opt in t.options
               if opt.name in props.bl_rna.properties}
     return RenderSettings(**values, extras=extras)
+
+
+def viewport_settings(scene) -> RenderSettings:
+    """RenderSettings of the viewport's refined frame."""
+    settings = settings_from_scene(scene)
+    props = scene.penumbra
+    changes = {"shadow_map_size": props.viewport_map_size}
+    if props.viewport_technique != "SAME":
+        changes["technique"] = props.viewport_technique
+    if props.viewport_pass not in ("Combined", "Visibility", "Unshadowed"):
+        changes["debug_passes"] = True
+    return settings.with_(**changes)
 
 
 classes = (PenumbraSceneSettings, PenumbraObjectSettings)
