@@ -17,7 +17,7 @@ from .gpu.context import GpuWorker, Job
 from .gpu.frame import Frame
 from .gpu.geometry import SceneGeometry
 from .settings import RenderSettings
-from .shading import light_uniforms
+from .shading import light_defines, light_uniforms
 from .snapshot import SceneSnapshot
 from .techniques import get as get_technique
 from .techniques.base import DEPTH_MAP, LightContext
@@ -102,7 +102,8 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
         frame.progress.step(0.0, f"{light.name}: irradiance")
         frame.progress.check()
         with t.stage("irradiance"):
-            frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance})
+            frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
+                           defines=light_defines(light))
         with t.stage("readback"):
             lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
         if not lit.any():

@@ -21,20 +21,33 @@ LIGHT_POLYGON, LIGHT_SPHERE, LIGHT_POINT, LIGHT_SUN = 0, 1, 2, 3
 ELLIPSE_SIDES = 64
 
 
+def light_defines(light: Light) -> dict:
+    """Compile-time specialisation of glsl/shading/irradiance.glsl for this light (shape, sides, cone)."""
+    u = _light_values(light)
+    sides = ELLIPSE_SIDES if light.kind == AREA and light.shape in (DISK, ELLIPSE) else 4
+    return {"LIGHT_SHAPE": u["u_shape"], "POLY_SIDES": sides, "LIGHT_SPOT": int(light.kind == SPOT)}
+
+
 def light_uniforms(light: Light) -> dict:
+    """Uniform values of glsl/shading/irradiance.glsl for this light."""
+    u = _light_values(light)
+    del u["u_shape"]
+    return u
+
+
+def _light_values(light: Light) -> dict:
     m = np.asarray(light.matrix, float)
     x_axis, y_axis, z_axis, pos = m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3]
     color = np.asarray(light.color, float) * light.power
     u = {
         "u_center": tuple(pos), "u_emit_dir": tuple(-z_axis), "u_axis_u": (0.0, 0.0, 0.0),
-        "u_axis_v": (0.0, 0.0, 0.0), "u_sides": 4, "u_radius": 0.0, "u_one_sided": 0, "u_spot": 0,
+        "u_axis_v": (0.0, 0.0, 0.0), "u_radius": 0.0, "u_one_sided": 0,
         "u_spot_to_local": tuple(np.eye(3).ravel()), "u_spot_cos_half": -1.0, "u_spot_smooth": 0.0,
         "u_soft_falloff": int(light.use_soft_falloff),
     }
     if light.kind == AREA and not light.is_delta:
         u.update(u_shape=LIGHT_POLYGON, u_one_sided=1,
                  u_axis_u=tuple(x_axis * light.size_x / 2), u_axis_v=tuple(y_axis * light.size_y / 2),
-                 u_sides=ELLIPSE_SIDES if light.shape in (DISK, ELLIPSE) else 4,
                  u_radiance=tuple(color / (np.pi * light.area)))
     elif light.kind == SUN:
         half = light.angle / 2.0
@@ -57,7 +70,7 @@ def light_uniforms(light: Light) -> dict:
         cos_half = float(np.cos(light.spot_size / 2.0))
         scale = np.asarray(light.spot_scale, float)
         to_local = np.diag(1.0 / np.maximum(np.abs(scale), 1e-12)) @ m[:3, :3].T
-        u.update(u_spot=1, u_spot_cos_half=cos_half, u_spot_smooth=float((1.0 - cos_half) * light.spot_blend),
+        u.update(u_spot_cos_half=cos_half, u_spot_smooth=float((1.0 - cos_half) * light.spot_blend),
                  u_spot_to_local=tuple(to_local.T.ravel()))
     return u
 
@@ -71,7 +84,7 @@ def irradiance_at(worker, light: Light, points: np.ndarray, normals: np.ndarray)
     pad = lambda a: np.c_[np.asarray(a, np.float32), np.zeros(n, np.float32)].tobytes()
     bufs = [ctx.buffer(pad(points)), ctx.buffer(pad(normals)), ctx.buffer(reserve=16 * max(n, 1))]
     try:
-        prog = program(worker, compute="shading/irradiance_points.comp")
+        prog = program(worker, compute="shading/irradiance_points.comp", defines=light_defines(light))
         for name, value in {**light_uniforms(light), "u_count": n}.items():
             if name in prog:
                 prog[name].value = value

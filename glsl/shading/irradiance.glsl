@@ -12,10 +12,18 @@ const int LIGHT_POLYGON = 0;   // area light: rectangle (sides = 4) or ellipse (
 const int LIGHT_SPHERE = 1;    // point/spot with a radius
 const int LIGHT_POINT = 2;     // point/spot without radius: I·cosθ/d²
 const int LIGHT_SUN = 3;       // sun: disk of directions, or S·cosθ when the angle is zero
-const int MAX_SIDES = 64;
 
-uniform int u_shape;
-uniform int u_sides;
+// Specialised per light when compiled (engine/shading.py light_defines): with the shape, the polygon's side
+// count and the spot cone known, the compiler unrolls and drops what a light does not use.
+#ifndef LIGHT_SHAPE
+#define LIGHT_SHAPE 0
+#endif
+#ifndef POLY_SIDES
+#define POLY_SIDES 4
+#endif
+#ifndef LIGHT_SPOT
+#define LIGHT_SPOT 0
+#endif
 uniform vec3 u_center;         // light position (world)
 uniform vec3 u_axis_u;         // polygon half-extent along local X (world vector)
 uniform vec3 u_axis_v;         // polygon half-extent along local Y
@@ -24,23 +32,30 @@ uniform float u_radius;        // sphere radius, or tan(angle/2) for the sun
 uniform vec3 u_radiance;       // polygon/sphere/sun radiance, or point intensity (W/sr), RGB
 uniform int u_one_sided;       // area lights emit only towards u_emit_dir
 uniform int u_soft_falloff;    // sphere lights: disk facing x (1) or true sphere (0)
-uniform int u_spot;            // spot cone applies
 uniform mat3 u_spot_to_local;  // world → spot-local with the object's scale folded in (Cycles' cone shape)
 uniform float u_spot_cos_half;
 uniform float u_spot_smooth;
 
+// One edge's term θ · n·(a×b)/|a×b|. θ/sinθ comes from the rational fit of Hill & Heitz ("Real-Time Area
+// Lighting: a Journey from Research to Production", SIGGRAPH 2016 course, §"integrating edges"): far
+// cheaper than atan on a software rasteriser, relative error below 1e-3 over the whole range.
 float edge_term(vec3 a, vec3 b, vec3 n) {
-    vec3 c = cross(a, b);
-    float s = length(c);
-    if (s <= 1e-20) return 0.0;
-    // atan(|a×b|, a·b) keeps tiny angles accurate where acos would lose them.
-    return atan(s, dot(a, b)) * dot(n, c) / s;
+    float la = length(a), lb = length(b);
+    if (la <= 1e-30 || lb <= 1e-30) return 0.0;
+    vec3 ua = a / la, ub = b / lb;
+    float x = clamp(dot(ua, ub), -1.0, 1.0);
+    float y = abs(x);
+    float fit = (0.8543985 + (0.4965155 + 0.0145206 * y) * y) / (3.4175940 + (4.1616724 + y) * y);
+    float theta_over_sin = 6.28318530718 * (x > 0.0 ? fit : 0.5 * inversesqrt(max(1.0 - x * x, 1e-7)) - fit);
+    return theta_over_sin * dot(n, cross(ua, ub));
 }
 
 vec3 polygon_vertex(int i, vec3 center, vec3 u, vec3 v, int sides) {
     if (sides == 4) {
-        const vec2 corners[4] = vec2[4](vec2(-1, -1), vec2(1, -1), vec2(1, 1), vec2(-1, 1));
-        return center + corners[i].x * u + corners[i].y * v;
+        // corners (-1,-1), (1,-1), (1,1), (-1,1)
+        float sx = (i == 1 || i == 2) ? 1.0 : -1.0;
+        float sy = (i >= 2) ? 1.0 : -1.0;
+        return center + sx * u + sy * v;
     }
     // Regular N-gon scaled so its area equals the ellipse's: k² · N/2 · sin(2π/N) = π.
     float k = sqrt(6.28318530718 / (float(sides) * sin(6.28318530718 / float(sides))));
@@ -50,13 +65,28 @@ vec3 polygon_vertex(int i, vec3 center, vec3 u, vec3 v, int sides) {
 
 // Σ of Lambert edge terms over the polygon clipped to n·v ≥ 0; vertices relative to the receiver.
 float clipped_polygon_sum(vec3 center, vec3 u, vec3 v, int sides, vec3 n) {
+    // Usually the whole light is above the receiver's horizon: sum the edges directly.
+    bool above = true;
+    for (int i = 0; i < sides; ++i) {
+        if (dot(n, polygon_vertex(i, center, u, v, sides)) < 0.0) { above = false; break; }
+    }
+    if (above) {
+        float direct = 0.0;
+        vec3 a = polygon_vertex(sides - 1, center, u, v, sides);
+        for (int i = 0; i < sides; ++i) {
+            vec3 b = polygon_vertex(i, center, u, v, sides);
+            direct += edge_term(a, b, n);
+            a = b;
+        }
+        return abs(direct);
+    }
+    // Otherwise clip (Sutherland–Hodgman against the tangent plane), summing edges as they come out.
     float sum = 0.0;
     vec3 first = vec3(0.0), prev = vec3(0.0);
     bool have = false;
     vec3 a = polygon_vertex(sides - 1, center, u, v, sides);
     float ha = dot(n, a);
-    for (int i = 0; i < MAX_SIDES; ++i) {
-        if (i >= sides) break;
+    for (int i = 0; i < sides; ++i) {
         vec3 b = polygon_vertex(i, center, u, v, sides);
         float hb = dot(n, b);
         vec3 out_pts[2];
@@ -113,22 +143,22 @@ float spot_over_disk(vec3 center, vec3 u, vec3 v, vec3 n) {
 
 vec3 light_irradiance(vec3 x, vec3 n) {
     vec3 to_light = u_center - x;
-    if (u_shape == LIGHT_POLYGON) {
+    if (LIGHT_SHAPE == LIGHT_POLYGON) {
         if (u_one_sided == 1 && dot(x - u_center, u_emit_dir) <= 0.0) return vec3(0.0);
-        return u_radiance * (0.5 * clipped_polygon_sum(to_light, u_axis_u, u_axis_v, u_sides, n));
+        return u_radiance * (0.5 * clipped_polygon_sum(to_light, u_axis_u, u_axis_v, POLY_SIDES, n));
     }
-    if (u_shape == LIGHT_POINT) {
-        float spot = u_spot == 1 ? spot_attenuation(-to_light) : 1.0;
+    if (LIGHT_SHAPE == LIGHT_POINT) {
+        float spot = LIGHT_SPOT == 1 ? spot_attenuation(-to_light) : 1.0;
         float d2 = max(dot(to_light, to_light), 1e-30);
         float lobe = u_one_sided == 1 ? max(dot(-to_light, u_emit_dir), 0.0) / sqrt(d2) : 1.0;
         return u_radiance * spot * lobe * max(dot(n, to_light), 0.0) / (d2 * sqrt(d2));
     }
-    if (u_shape == LIGHT_SUN && u_radius <= 0.0) {
+    if (LIGHT_SHAPE == LIGHT_SUN && u_radius <= 0.0) {
         return u_radiance * max(dot(n, -u_emit_dir), 0.0);
     }
     vec3 dir, center;
     float rho;
-    if (u_shape == LIGHT_SUN) {
+    if (LIGHT_SHAPE == LIGHT_SUN) {
         dir = -u_emit_dir;                       // a disk of directions at unit distance
         center = dir;
         rho = u_radius;
@@ -147,7 +177,7 @@ vec3 light_irradiance(vec3 x, vec3 n) {
     }
     vec3 u = orthogonal(dir) * rho;
     vec3 v = cross(dir, u);
-    float spot = u_spot == 1 ? spot_over_disk(center, u, v, n) : 1.0;
+    float spot = LIGHT_SPOT == 1 ? spot_over_disk(center, u, v, n) : 1.0;
     if (spot <= 0.0) return vec3(0.0);
     return u_radiance * spot * (0.5 * clipped_polygon_sum(center, u, v, 32, n));
 }
