@@ -163,10 +163,64 @@ def cmd_compare(args) -> int:
     return 0
 
 
+def cmd_stress(args) -> int:
+    from . import stress
+    rows = stress.run(args.technique, args.case, parse_overrides(args.set),
+                      progress=lambda line: print(line, file=sys.stderr, flush=True))
+    print(stress.format_table(rows))
+    failed = [r for r in rows if r["status"] != "ok"]
+    print(f"{len(rows) - len(failed)} passed, {len(failed)} failed")
+    return 0 if not failed else 1
+
+
 def cmd_scenes(args) -> int:
     from .scenes import list_scenes
     for name, description in list_scenes():
         print(f"{name:<12} {description}")
+    return 0
+
+
+def _csv_list(text: str) -> list[str]:
+    return [item.strip() for item in (text or "").split(",") if item.strip()]
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        return [int(item) for item in _csv_list(text)]
+    except ValueError:
+        raise SystemExit(f"penumbra: expected comma-separated integers, got '{text}'") from None
+
+
+def cmd_bench(args) -> int:
+    _import_bpy()
+    if args.viewport:
+        from . import viewport_bench
+        scenes = _csv_list(args.scenes) or ["suzanne", "balls", "city"]
+        techniques = [t.upper() for t in _csv_list(args.techniques)] or None
+        viewport_bench.run(args.out, scenes=scenes, techniques=techniques, size=tuple(args.viewport_size),
+                           repeats=max(1, min(args.repeats, 5)))
+        print(f"wrote {args.out}/viewport.{{json,md}}")
+        return 0
+    from . import bench
+    peers = [p.lower() for p in _csv_list(args.peers)]
+    if peers in (["none"], ["off"]):
+        peers = []
+    t0 = time.perf_counter()
+    try:
+        results = bench.run_bench(
+            args.out, scenes=_csv_list(args.scenes) or None,
+            techniques=[t.upper() for t in _csv_list(args.techniques)] or None, sweep=args.sweep, peers=peers,
+            resolution=tuple(args.resolution), repeats=args.repeats, reference_samples=args.reference_samples,
+            cycles_samples=_int_list(args.cycles_samples), eevee_samples=_int_list(args.eevee_samples),
+            eevee_jitter=not args.eevee_no_jitter, target_samples=args.target_samples,
+            overrides=parse_overrides(args.set), budget_s=args.budget or None,
+            peer_budget_s=args.peer_budget or None)
+    except ValueError as exc:
+        print(f"penumbra: {exc}", file=sys.stderr)
+        return 2
+    print(bench.summary_table(results["summary"]))
+    print(f"bench wall time {time.perf_counter() - t0:.0f} s; wrote {args.out}/results.{{json,csv,md}} and "
+          f"pareto_<scene>.png")
     return 0
 
 
@@ -203,6 +257,38 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--repeats", type=int, default=3, help="timed repeats of our frame (median reported)")
     c.add_argument("--no-noise-floor", action="store_true", help="skip the second Cycles seed")
     c.set_defaults(func=cmd_compare)
+
+    b = sub.add_parser("bench", help="time and error of every technique against Cycles (and EEVEE), per scene")
+    b.add_argument("--scenes", default="", help="comma-separated built-in scenes (default: all)")
+    b.add_argument("--techniques", default="", help="comma-separated techniques (default: all)")
+    b.add_argument("--sweep", action="store_true", help="sweep each technique's knobs (map size, kernels, …)")
+    b.add_argument("--peers", default="cycles", help="comma-separated peers: cycles, eevee, or none")
+    b.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"), default=[128, 128])
+    b.add_argument("--repeats", type=int, default=5, help="timed frames per configuration (median reported)")
+    b.add_argument("--reference-samples", type=int, default=1024, help="Cycles samples of the reference")
+    b.add_argument("--cycles-samples", default="1,4,16,64,256", help="sample counts of the Cycles peer")
+    b.add_argument("--eevee-samples", default="1,16,64", help="sample counts of the EEVEE peer")
+    b.add_argument("--eevee-no-jitter", action="store_true",
+                   help="EEVEE with Blender's default unjittered shadows (default: lights' shadow jitter on)")
+    b.add_argument("--target-samples", type=int, default=64,
+                   help="the summary lists our fastest configuration at least as accurate as Cycles at this")
+    b.add_argument("--budget", type=float, default=20.0,
+                   help="seconds of timed frames per configuration before fewer repeats are taken (0: no cap)")
+    b.add_argument("--peer-budget", type=float, default=5.0,
+                   help="seconds of Cycles renders per sample count before fewer repeats are taken (0: no cap)")
+    b.add_argument("--set", action="append", metavar="NAME=VALUE", help="base render setting, repeatable")
+    b.add_argument("--viewport", action="store_true",
+                   help="interactive latency instead: first and refined frame after a camera move, an object "
+                        "move and a light edit (default scenes suzanne, balls, city)")
+    b.add_argument("--viewport-size", type=int, nargs=2, metavar=("W", "H"), default=[1280, 720])
+    b.add_argument("--out", required=True, help="folder for results.json/.csv/.md and pareto_<scene>.png")
+    b.set_defaults(func=cmd_bench)
+
+    st = sub.add_parser("stress", help="stiff and extreme cases × every technique: NaN/Inf, range, error, time")
+    st.add_argument("--technique", action="append", type=str.upper, help="technique(s) (default: all)")
+    st.add_argument("--case", action="append", help="case(s) (default: all)")
+    st.add_argument("--set", action="append", metavar="NAME=VALUE", help="render setting, repeatable")
+    st.set_defaults(func=cmd_stress)
 
     s = sub.add_parser("scenes", help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)

@@ -719,21 +719,9 @@ def format_table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    import argparse
-    ap = argparse.ArgumentParser(prog="python -m penumbra.engine.stress", description=__doc__.split("\n")[0])
-    ap.add_argument("--technique", "-t", action="append", help="technique(s) to run (default: all)")
-    ap.add_argument("--case", "-c", action="append", help="case(s) to run (default: all)")
-    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="RenderSettings override, e.g. --set reference_samples=64")
-    args = ap.parse_args(argv)
-    overrides = {}
-    for item in args.set:
-        k, _, v = item.partition("=")
-        overrides[k] = type(getattr(RenderSettings(), k))(v) if not isinstance(getattr(RenderSettings(), k), bool) \
-            else v.lower() in ("1", "true", "yes")
-    rows = run(args.technique, args.case, overrides, progress=lambda s: print(s, file=sys.stderr, flush=True))
-    print(format_table(rows))
-    return 0 if all(r["status"] == "ok" for r in rows) else 1
+    """Same as `python -m penumbra stress`."""
+    from .cli import main as cli_main
+    return cli_main(["stress", *(argv if argv is not None else sys.argv[1:])])
 
 
 if __name__ == "__main__":

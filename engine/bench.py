@@ -1,0 +1,754 @@
+"""Benchmark: every technique (and, with a sweep, its knobs) against a high-sample Cycles reference, beside
+Cycles itself (and optionally EEVEE) at a few sample counts on the same scene and resolution.
+
+Per scene: build it, extract the snapshot once, load (or render and cache) the Cycles reference and its noise
+floor (the same metrics between two reference seeds). Per technique × configuration: one warm-up frame (its
+time is reported apart as the first-frame time: shader compilation, first uploads), then N timed frames; the
+time reported is the median wall clock of `pipeline.render` (which waits for the GPU), with per-stage
+medians beside it, and the error is `metrics.compare` of the Visibility pass against the reference.
+
+Peers: Cycles at 1, 4, 16, … samples, rendered fresh (not cached, seed `PEER_SEED`, unlike the reference's
+seeds), timed as a user pays for one shadowed image (the render of the shadowed half of the reference pair,
+measured between Blender's render_init and render_complete handlers), with V = shadowed / unshadowed at that
+sample count. EEVEE on request, its V computed the same way from a shadowed and an unshadowed render.
+
+Outputs (each written atomically): results.json (everything, with machine info), results.csv, results.md
+(one Markdown table per scene) and pareto_<scene>.png (time against mae_shadow). `summary_table` gives,
+per scene, our fastest configuration whose mae_shadow is no worse than Cycles at `target_samples`.
+
+Sweeps: `sweep_configs(technique)` — the `sweep` a technique class declares itself (settings-change dicts:
+RenderSettings fields or technique options), else this module's `SWEEPS` entry for it, else the sweep every
+technique inherits from `Technique` (shadow-map sizes). `register_sweep` sets a `SWEEPS` entry.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import time
+from contextlib import contextmanager
+from dataclasses import asdict
+
+import numpy as np
+
+from . import metrics, pipeline, reference
+from .settings import RenderSettings
+
+DEFAULT_RESOLUTION = (128, 128)
+DEFAULT_REPEATS = 5
+DEFAULT_REFERENCE_SAMPLES = 1024
+REFERENCE_SEEDS = (0, 1)            # the reference is seed 0; seed 1 only measures its noise floor
+PEER_SEED = 7                       # peers never share the reference's samples
+CYCLES_SAMPLES = (1, 4, 16, 64, 256)
+EEVEE_SAMPLES = (1, 16, 64)
+TARGET_SAMPLES = 64                 # the summary's bar: Cycles' error at this many samples
+PEERS = ("cycles", "eevee")
+CONFIG_BUDGET_S = 20.0              # timed frames per configuration stop at about this much time (≥ 1 frame)
+PEER_BUDGET_S = 5.0                 # Cycles pairs per sample count: repeated (≤ repeats) within this much time
+
+METRIC_KEYS = ("mae_shadow", "mae", "rmse", "max_abs", "pixel_match", "n_mask", "n_shadow")
+STAGES = ("upload", "gbuffer", "readback", "irradiance", "light_view", "shadow_map", "visibility", "accumulate")
+
+MAP_SIZE_SWEEP = [{"shadow_map_size": n} for n in (256, 512, 1024, 2048)]
+SWEEPS: dict[str, list[dict]] = {
+    "HARD": MAP_SIZE_SWEEP,
+    "PCF": MAP_SIZE_SWEEP + [{"pcf_radius": r} for r in (1.0, 2.0, 4.0)],
+    "PCSS": MAP_SIZE_SWEEP + [{"pcss_blocker_samples": b, "pcss_filter_samples": f}
+                              for b, f in ((16, 32), (32, 64), (64, 128))],
+    "REFERENCE": MAP_SIZE_SWEEP + [{"reference_samples": n} for n in (16, 64, 256, 1024)],
+}
+
+_SHORT = {"shadow_map_size": "map", "pcf_radius": "radius", "pcf_taps": "taps",
+          "pcss_blocker_samples": "blocker", "pcss_filter_samples": "filter", "reference_samples": "samples"}
+
+
+def register_sweep(identifier: str, configs: list[dict]) -> None:
+    """Set the sweep of technique `identifier`: a list of RenderSettings changes, one per configuration."""
+    SWEEPS[identifier] = [dict(c) for c in configs]
+
+
+def sweep_configs(identifier: str) -> list[dict]:
+    """The configurations a --sweep runs for `identifier` (see the module docstring for the precedence)."""
+    from .techniques import get as get_technique
+    from .techniques.base import Technique
+    technique = get_technique(identifier)
+    declared = getattr(type(technique), "sweep", None)
+    inherited = declared is None or declared is getattr(Technique, "sweep", None)   # the base class default
+    if not inherited and declared:
+        configs = declared
+    elif identifier in SWEEPS:
+        configs = SWEEPS[identifier]
+    else:
+        configs = declared or MAP_SIZE_SWEEP
+    return [dict(c) for c in configs]
+
+
+def config_label(changes: dict) -> str:
+    if not changes:
+        return "default"
+    parts = []
+    for name, value in changes.items():
+        if name == "extras" and isinstance(value, dict):
+            parts += [f"{k}={_fmt_value(v)}" for k, v in value.items()]
+        else:
+            parts.append(f"{_SHORT.get(name, name)}={_fmt_value(value)}")
+    return " ".join(parts)
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, float) and v.is_integer():
+        return str(int(v))
+    return str(v)
+
+
+def configurations(identifier: str, base: RenderSettings, sweep: bool) -> list[tuple[str, dict, RenderSettings]]:
+    """(label, changes, settings) per configuration; configurations that resolve to the same settings
+    (e.g. map=1024 and radius=2 for PCF) run once, under the first label."""
+    out, seen = [], set()
+    for changes in (sweep_configs(identifier) if sweep else [{}]):
+        settings = base.with_(technique=identifier, **changes)
+        settings.validate()
+        key = json.dumps(asdict(settings), sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            out.append((config_label(changes), changes, settings))
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Timing helpers
+
+
+class RenderTimer:
+    """Wall time of each Blender render (render_init → render_complete handlers) while in the `with` block."""
+
+    def __init__(self):
+        self.durations: list[float] = []
+        self._start = None
+
+    def __enter__(self):
+        import bpy
+
+        @bpy.app.handlers.persistent
+        def on_init(*_):
+            self._start = time.perf_counter()
+
+        @bpy.app.handlers.persistent
+        def on_complete(*_):
+            if self._start is not None:
+                self.durations.append(time.perf_counter() - self._start)
+                self._start = None
+
+        self._handlers = [(bpy.app.handlers.render_init, on_init), (bpy.app.handlers.render_complete, on_complete)]
+        for lst, fn in self._handlers:
+            lst.append(fn)
+        return self
+
+    def __exit__(self, *exc):
+        for lst, fn in self._handlers:
+            if fn in lst:
+                lst.remove(fn)
+        return False
+
+
+@contextmanager
+def _stdout_to_stderr(enabled: bool = True):
+    """Send what Blender prints on stdout (render status lines) to stderr, so stdout keeps the results."""
+    if not enabled:
+        yield
+        return
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    try:
+        os.dup2(2, 1)
+        yield
+    finally:
+        try:
+            sys.stdout.flush()
+        except Exception:
+            pass
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def _median(xs) -> float:
+    return float(np.median(xs)) if len(xs) else float("nan")
+
+
+def time_ours(snap, settings: RenderSettings, repeats: int, *, on_frame=None,
+              budget_s: float | None = CONFIG_BUDGET_S) -> dict:
+    """Warm-up frame, then up to `repeats` timed frames (fewer when they would exceed `budget_s`, never 0)."""
+    t0 = time.perf_counter()
+    result = pipeline.render(snap, settings)
+    first_ms = (time.perf_counter() - t0) * 1000.0
+    n = max(1, int(repeats))
+    if budget_s:
+        n = max(1, min(n, int(budget_s * 1000.0 // max(first_ms, 1e-3))))
+    if on_frame:
+        on_frame(1, n + 1)
+    times, stages = [], []
+    for i in range(n):
+        t0 = time.perf_counter()
+        result = pipeline.render(snap, settings)
+        times.append((time.perf_counter() - t0) * 1000.0)
+        stages.append(result.timings)
+        if on_frame:
+            on_frame(i + 2, n + 1)
+    names = [s for s in STAGES if any(s in st for st in stages)]
+    names += sorted({k for st in stages for k in st} - set(names))
+    return {"first_frame_ms": first_ms, "times_ms": times, "time_ms": _median(times),
+            "stages_ms": {s: _median([st.get(s, 0.0) for st in stages]) for s in names},
+            "result": result}
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Peers
+
+
+def cycles_peer(scene, samples: int, width: int, height: int, ref, *, repeats: int = 1,
+                budget_s: float | None = None) -> dict:
+    """Cycles at `samples` (fresh renders, seed PEER_SEED): median shadowed-render time over up to `repeats`
+    pairs (fewer once `budget_s` would be exceeded) and the error of the first pair's V against `ref`."""
+    times, pairs, first = [], [], None
+    for i in range(max(1, int(repeats))):
+        with RenderTimer() as timer:
+            peer = reference.cycles_visibility(scene, samples=samples, seed=PEER_SEED, width=width,
+                                               height=height, use_cache=False)
+        times.append((timer.durations[0] if timer.durations else peer.seconds / 2.0) * 1000.0)
+        pairs.append(peer.seconds * 1000.0)
+        first = first or (peer, bool(timer.durations))
+        if budget_s is not None and sum(pairs) + pairs[-1] > budget_s * 1000.0:
+            break
+    peer, timed = first
+    return {"time_ms": _median(times), "times_ms": times, "pair_ms": _median(pairs),
+            "timed_by": "render handlers" if timed else "half of the pair",
+            "metrics": metrics.compare(peer.visibility, ref.visibility, ref.mask), "seed": PEER_SEED}
+
+
+def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bool = True, view_layer=None):
+    """EEVEE's V = L(shadowed) / L(unshadowed) under the reference's white-Lambert override and black world;
+    unshadowed = every light's use_shadow off. Returns (V, mask, shadowed seconds, pair seconds). Every
+    scene setting changed is restored afterwards, also on error."""
+    import tempfile
+
+    import bpy
+
+    view_layer = view_layer or reference._pick_view_layer(scene)
+    st = reference._Settings()
+    temp_ids = []
+    tmpdir = tempfile.mkdtemp(prefix="penumbra_eevee_")
+    r = scene.render
+    try:
+        mat = reference._make_material()
+        temp_ids.append(("materials", mat))
+        world = reference._make_world()
+        temp_ids.append(("worlds", world))
+        st.set(r, "engine", "BLENDER_EEVEE")
+        st.set(scene.eevee, "taa_render_samples", int(samples))
+        st.set(scene.eevee, "use_raytracing", False)
+        st.set(scene.eevee, "use_shadows", True)
+        st.set(r, "filter_size", reference.POINT_FILTER_WIDTH)
+        st.set(scene, "world", world)
+        st.set(r, "resolution_x", int(width))
+        st.set(r, "resolution_y", int(height))
+        st.set(r, "resolution_percentage", 100)
+        st.set(r, "use_border", False)
+        st.set(r, "use_motion_blur", False)
+        st.set(r, "use_compositing", False)
+        st.set(r, "use_sequencer", False)
+        st.set(r, "film_transparent", False)
+        st.set(r, "use_file_extension", True)
+        st.set(r, "use_single_layer", True)
+        img = r.image_settings
+        st.set(img, "media_type", "MULTI_LAYER_IMAGE")
+        st.set(img, "file_format", "OPEN_EXR_MULTILAYER")
+        st.set(img, "color_depth", "32")
+        st.set(img, "exr_codec", "ZIP")
+        for layer in scene.view_layers:
+            if layer != view_layer and layer.use:
+                st.set(layer, "use", False)
+        st.set(view_layer, "use", True)
+        st.set(view_layer, "material_override", mat)
+        lights = {ob.data for ob in scene.objects if ob.type == "LIGHT"}
+        for light in lights:
+            if hasattr(light, "use_shadow_jitter"):
+                st.set(light, "use_shadow_jitter", bool(jitter))
+        images, seconds = [], []
+        for unshadowed in (False, True):
+            if unshadowed:
+                for light in lights:
+                    st.set(light, "use_shadow", False)
+            path = os.path.join(tmpdir, f"{'unshadowed' if unshadowed else 'shadowed'}.exr")
+            st.set(r, "filepath", path)
+            with RenderTimer() as timer:
+                t0 = time.perf_counter()
+                bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
+                wall = time.perf_counter() - t0
+            seconds.append(timer.durations[0] if timer.durations else wall)
+            if not os.path.exists(path):
+                raise RuntimeError(f"EEVEE wrote no image to {path}")
+            images.append(reference.read_exr_combined(path, view_layer.name))
+        vis, mask = reference.visibility_from(images[0], images[1])
+        return vis, mask, seconds[0], seconds[0] + seconds[1]
+    finally:
+        try:
+            st.restore()
+        finally:
+            for coll, idb in temp_ids:
+                try:
+                    getattr(bpy.data, coll).remove(idb)
+                except Exception:
+                    pass
+            for name in os.listdir(tmpdir):
+                try:
+                    os.remove(os.path.join(tmpdir, name))
+                except OSError:
+                    pass
+            try:
+                os.rmdir(tmpdir)
+            except OSError:
+                pass
+
+
+def eevee_peer(scene, samples: int, width: int, height: int, ref, jitter: bool = True) -> dict:
+    vis, _mask, shadowed_s, pair_s = eevee_visibility(scene, samples=samples, width=width, height=height,
+                                                      jitter=jitter)
+    return {"time_ms": shadowed_s * 1000.0, "times_ms": [shadowed_s * 1000.0], "pair_ms": pair_s * 1000.0,
+            "timed_by": "render handlers", "jitter": bool(jitter),
+            "metrics": metrics.compare(vis, ref.visibility, ref.mask)}
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Machine
+
+
+def machine_info() -> dict:
+    info = {"platform": platform.platform(), "python": platform.python_version(),
+            "cpu_count": os.cpu_count(), "cpu": platform.processor() or platform.machine()}
+    try:
+        info["cpus_usable"] = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        pass
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.lower().startswith("model name"):
+                    info["cpu"] = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    try:
+        info["load_average"] = [round(x, 2) for x in os.getloadavg()]
+    except (AttributeError, OSError):
+        pass
+    try:
+        import bpy
+        info["blender"] = bpy.app.version_string
+    except ImportError:
+        pass
+    info["numpy"] = np.__version__
+    try:
+        from .gpu.context import GpuWorker
+        gl = GpuWorker.get().submit(lambda w: {k: w.ctx.info.get(k) for k in
+                                               ("GL_RENDERER", "GL_VENDOR", "GL_VERSION")}).result()
+        info["gl_renderer"], info["gl_vendor"], info["gl_version"] = (gl["GL_RENDERER"], gl["GL_VENDOR"],
+                                                                     gl["GL_VERSION"])
+    except Exception as exc:  # report, never fail the bench on it
+        info["gl_renderer"] = f"unknown ({exc})"
+    try:
+        here = os.path.dirname(os.path.abspath(__file__))
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True,
+                                timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        if commit:
+            info["git_commit"] = commit + ("+dirty" if dirty else "")
+    except Exception:
+        pass
+    return info
+
+
+def machine_label(info: dict) -> str:
+    cpu = str(info.get("cpu", "?"))
+    for noise in ("(R)", "(TM)", " CPU", " Processor"):
+        cpu = cpu.replace(noise, "")
+    cpu = " ".join(cpu.split()).split(" @ ")[0]
+    gl = str(info.get("gl_renderer", "?")).split(" (")[0]
+    return f"{cpu} ×{info.get('cpus_usable', info.get('cpu_count', '?'))}, GL {gl}"
+
+
+# ----------------------------------------------------------------------------------------------------------
+# The run
+
+
+def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, peers=("cycles",),
+              resolution=DEFAULT_RESOLUTION, repeats: int = DEFAULT_REPEATS,
+              reference_samples: int = DEFAULT_REFERENCE_SAMPLES, cycles_samples=CYCLES_SAMPLES,
+              eevee_samples=EEVEE_SAMPLES, eevee_jitter: bool = True, target_samples: int = TARGET_SAMPLES,
+              overrides: dict | None = None, cache_dir=None, budget_s: float | None = CONFIG_BUDGET_S,
+              peer_budget_s: float | None = PEER_BUDGET_S,
+              progress: bool = True, stream=None, quiet_renders: bool = True) -> dict:
+    """Run the benchmark and write results.json/.csv/.md and pareto_<scene>.png under `out_dir`; returns
+    the results dict (also what results.json holds). `overrides` change the base RenderSettings of every
+    configuration (the sweep's changes apply on top)."""
+    import bpy
+
+    from . import scenes as scene_lib
+    from .cli import ProgressBar
+    from .scene import extract
+    from .techniques import TECHNIQUES
+
+    stream = stream or sys.stderr
+    scene_names = list(scenes) if scenes else [name for name, _ in scene_lib.list_scenes()]
+    known = [name for name, _ in scene_lib.list_scenes()]
+    for name in scene_names:
+        if name not in known:
+            raise ValueError(f"unknown scene {name!r}; valid scenes: {', '.join(known)}")
+    technique_ids = [t.upper() for t in techniques] if techniques else list(TECHNIQUES)
+    for tid in technique_ids:
+        if tid not in TECHNIQUES:
+            raise ValueError(f"unknown technique {tid!r}; choose from {', '.join(TECHNIQUES)}")
+    peers = tuple(p.lower() for p in (peers or ()))
+    for p in peers:
+        if p not in PEERS:
+            raise ValueError(f"unknown peer {p!r}; choose from {', '.join(PEERS)}")
+    base = RenderSettings().with_(**(overrides or {}))
+    plans = {tid: configurations(tid, base, sweep) for tid in technique_ids}   # validates every config early
+    width, height = int(resolution[0]), int(resolution[1])
+    os.makedirs(out_dir, exist_ok=True)
+    ref_kwargs = {"cache_dir": cache_dir} if cache_dir is not None else {}
+
+    def log(text: str) -> None:
+        if progress:
+            stream.write(text + "\n")
+            stream.flush()
+
+    def bar(label: str):
+        return ProgressBar(label, stream=stream) if progress else None
+
+    started = time.perf_counter()
+    results = {
+        "machine": machine_info(),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "args": {"scenes": scene_names, "techniques": technique_ids, "sweep": bool(sweep), "peers": list(peers),
+                 "resolution": [width, height], "repeats": int(repeats),
+                 "reference_samples": int(reference_samples), "reference_seeds": list(REFERENCE_SEEDS),
+                 "cycles_samples": [int(s) for s in cycles_samples], "eevee_samples": [int(s) for s in eevee_samples],
+                 "eevee_jitter": bool(eevee_jitter), "target_samples": int(target_samples),
+                 "overrides": dict(overrides or {}), "budget_s": budget_s, "peer_budget_s": peer_budget_s,
+                 "peer_seed": PEER_SEED},
+        "timing_note": ("ours: median wall clock of pipeline.render over the timed frames after one warm-up "
+                        "frame (scene already extracted; geometry upload included); peers: Blender wall time "
+                        "of one shadowed render (render_init → render_complete), median over the repeated pairs "
+                        "(Cycles: as many as fit in peer_budget_s, up to repeats; EEVEE: one), after an "
+                        "untimed 1-sample warm-up pair per scene whose time is the peers' first-frame"),
+        "scenes": [],
+    }
+    for si, name in enumerate(scene_names):
+        log(f"[{si + 1}/{len(scene_names)}] {name}: building at {width}×{height}")
+        scene = scene_lib.build(name, resolution=(width, height))
+        t0 = time.perf_counter()
+        snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+        extract_ms = (time.perf_counter() - t0) * 1000.0
+        w, h = snap.camera.width, snap.camera.height
+
+        log(f"{name}: Cycles reference {reference_samples} spp, seeds {REFERENCE_SEEDS} (cached after the first run)")
+        with _stdout_to_stderr(quiet_renders):
+            ref = reference.cycles_visibility(scene, samples=reference_samples, seed=REFERENCE_SEEDS[0],
+                                              width=w, height=h, **ref_kwargs)
+            floor = reference.noise_floor(scene, reference_samples, seeds=REFERENCE_SEEDS, width=w, height=h,
+                                          **ref_kwargs)
+        entry = {"scene": name, "resolution": [w, h], "triangles": int(snap.triangle_count),
+                 "lights": len(snap.lights), "extract_ms": extract_ms,
+                 "reference": {"samples": ref.samples, "seed": ref.seed, "seconds_pair": ref.seconds,
+                               "cached": ref.cached, "key": ref.key, "n_mask": int(ref.mask.sum())},
+                 "noise_floor": floor, "rows": []}
+
+        for tid in technique_ids:
+            for label, changes, settings in plans[tid]:
+                pb = bar(f"{name} {tid} {label}")
+                try:
+                    timing = time_ours(snap, settings, repeats, budget_s=budget_s,
+                                       on_frame=(lambda i, n: pb(i / n, f"frame {i}/{n}")) if pb else None)
+                finally:
+                    if pb:
+                        pb.close()
+                result = timing.pop("result")
+                v = result.passes["Visibility"][..., 0]
+                entry["rows"].append({
+                    "kind": "ours", "technique": tid, "config": label, "changes": changes,
+                    "settings": asdict(settings), "repeats": len(timing["times_ms"]), **timing,
+                    "metrics": metrics.compare(v, ref.visibility, ref.mask),
+                    "stats": result.stats, "warnings": sorted(set(result.warnings))})
+
+        for peer in peers:
+            counts = cycles_samples if peer == "cycles" else eevee_samples
+            warmup_ms = None
+            if counts:
+                # Untimed 1-sample pair first: the first render in a process or scene pays one-off costs
+                # (EEVEE compiles its shaders, ~50 s here; Cycles loads its kernels). Reported as first-frame.
+                pb = bar(f"{name} {peer} warm-up")
+                if pb:
+                    pb(0.0, "first render")
+                try:
+                    with _stdout_to_stderr(quiet_renders):
+                        if peer == "eevee":
+                            warmup_ms = eevee_visibility(scene, samples=1, width=w, height=h,
+                                                         jitter=eevee_jitter)[2] * 1e3
+                        else:
+                            warmup_ms = cycles_peer(scene, 1, w, h, ref)["time_ms"]
+                    if pb:
+                        pb(1.0, f"{warmup_ms:.0f} ms")
+                finally:
+                    if pb:
+                        pb.close()
+            for spp in counts:
+                pb = bar(f"{name} {peer} {spp} spp")
+                if pb:
+                    pb(0.0, "rendering")
+                try:
+                    with _stdout_to_stderr(quiet_renders):
+                        if peer == "cycles":
+                            row = cycles_peer(scene, int(spp), w, h, ref, repeats=repeats,
+                                              budget_s=peer_budget_s)
+                        else:
+                            row = eevee_peer(scene, int(spp), w, h, ref, jitter=eevee_jitter)
+                    if pb:
+                        pb(1.0, f"{row['time_ms']:.0f} ms")
+                finally:
+                    if pb:
+                        pb.close()
+                entry["rows"].append({"kind": "peer", "technique": "Cycles" if peer == "cycles" else "EEVEE",
+                                      "config": f"{int(spp)} spp", "samples": int(spp),
+                                      "first_frame_ms": warmup_ms, "repeats": len(row["times_ms"]), **row})
+                warmup_ms = None
+        results["scenes"].append(entry)
+        results["summary"] = summarize(results, target_samples)
+        results["wall_seconds"] = time.perf_counter() - started
+        write_outputs(out_dir, results, plot_scene=entry)
+    results["summary"] = summarize(results, target_samples)
+    results["wall_seconds"] = time.perf_counter() - started
+    write_outputs(out_dir, results)
+    return results
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Summary
+
+
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+def summarize(results: dict, target_samples: int = TARGET_SAMPLES) -> list[dict]:
+    """Per scene: our fastest configuration with mae_shadow ≤ Cycles' at `target_samples` (None if none)."""
+    out = []
+    for entry in results["scenes"]:
+        target = next((r for r in entry["rows"] if r["kind"] == "peer" and r["technique"] == "Cycles"
+                       and r.get("samples") == target_samples), None)
+        row = {"scene": entry["scene"], "target_samples": target_samples, "best": None,
+               "target_mae_shadow": None, "target_ms": None, "speedup": None}
+        if target is not None:
+            bar_ = target["metrics"]["mae_shadow"]
+            row["target_mae_shadow"], row["target_ms"] = bar_, target["time_ms"]
+            ok = [r for r in entry["rows"] if r["kind"] == "ours" and _finite(r["metrics"]["mae_shadow"])
+                  and _finite(bar_) and r["metrics"]["mae_shadow"] <= bar_]
+            if ok:
+                best = min(ok, key=lambda r: r["time_ms"])
+                row["best"] = {"technique": best["technique"], "config": best["config"],
+                               "time_ms": best["time_ms"], "mae_shadow": best["metrics"]["mae_shadow"]}
+                row["speedup"] = target["time_ms"] / best["time_ms"] if best["time_ms"] > 0 else None
+        out.append(row)
+    return out
+
+
+def _num(x, fmt: str, missing: str = "–") -> str:
+    return format(x, fmt) if _finite(x) else missing
+
+
+def summary_table(summary: list[dict]) -> str:
+    """The compact text table printed at the end of a run."""
+    spp = summary[0]["target_samples"] if summary else TARGET_SAMPLES
+    head = ("scene", f"fastest of ours with mae_shadow ≤ Cycles-{spp}", "mae_shadow", f"Cycles-{spp} mae",
+            "ours ms", f"Cycles-{spp} ms", "speed-up")
+    rows = []
+    for s in summary:
+        best = s["best"]
+        if s["target_ms"] is None:
+            what = f"n/a (no Cycles-{spp} peer)"
+        elif best is None:
+            what = "none"
+        else:
+            what = f"{best['technique']} {best['config']}"
+        rows.append((s["scene"], what, _num(best["mae_shadow"], ".4f") if best else "–",
+                     _num(s["target_mae_shadow"], ".4f"), _num(best["time_ms"], ".1f") if best else "–",
+                     _num(s["target_ms"], ".1f"), f"{s['speedup']:.1f}×" if _finite(s["speedup"]) else "–"))
+    widths = [max(len(str(c)) for c in col) for col in zip(head, *rows)]
+    lines = ["  ".join(str(c).ljust(wd) if i < 2 else str(c).rjust(wd) for i, (c, wd) in enumerate(zip(r, widths)))
+             for r in [head, *rows]]
+    lines.insert(1, "  ".join("-" * wd for wd in widths))
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Outputs
+
+
+def _clean(x):
+    """JSON-safe copy: NaN/inf → None, numpy scalars → Python numbers."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, np.generic):
+        x = x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    return x
+
+
+def _write_atomic(path: str, data) -> None:
+    tmp = f"{path}.{os.getpid()}.tmp"
+    mode = "wb" if isinstance(data, bytes) else "w"
+    with open(tmp, mode, **({} if mode == "wb" else {"encoding": "utf-8", "newline": ""})) as f:
+        f.write(data)
+    os.replace(tmp, path)
+
+
+CSV_FIELDS = ["scene", "width", "height", "kind", "technique", "config", "repeats", "time_ms", "first_frame_ms",
+              *METRIC_KEYS, "noise_floor_mae_shadow", "reference_samples"]
+
+
+def results_csv(results: dict) -> str:
+    stages = list(STAGES) + sorted({s for e in results["scenes"] for r in e["rows"]
+                                    for s in r.get("stages_ms", {})} - set(STAGES))
+    buf = io.StringIO()
+    wr = csv.writer(buf, lineterminator="\n")
+    wr.writerow(CSV_FIELDS + [f"stage_{s}_ms" for s in stages] + ["changes"])
+    for e in results["scenes"]:
+        for r in e["rows"]:
+            m = r["metrics"]
+            vals = [e["scene"], e["resolution"][0], e["resolution"][1], r["kind"], r["technique"], r["config"],
+                    r.get("repeats"), r["time_ms"], r.get("first_frame_ms"), *[m.get(k) for k in METRIC_KEYS],
+                    e["noise_floor"].get("mae_shadow"), e["reference"]["samples"]]
+            vals += [r.get("stages_ms", {}).get(s) for s in stages]
+            vals.append(json.dumps(r.get("changes", {}), sort_keys=True) if r["kind"] == "ours" else "")
+            wr.writerow(["" if v is None or (isinstance(v, float) and not math.isfinite(v)) else
+                         (f"{v:.6g}" if isinstance(v, float) else v) for v in vals])
+    return buf.getvalue()
+
+
+def results_markdown(results: dict) -> str:
+    a, mach = results["args"], results["machine"]
+    lines = ["# Penumbra benchmark", "",
+             f"Machine: {mach.get('cpu', '?')} ({mach.get('cpus_usable', mach.get('cpu_count', '?'))} usable cores), "
+             f"GL renderer {mach.get('gl_renderer', '?')}; Blender {mach.get('blender', '?')}; "
+             f"{mach.get('git_commit', '')}", "",
+             f"Resolution {a['resolution'][0]}×{a['resolution'][1]}; ours: median of up to {a['repeats']} timed "
+             f"frames after a warm-up frame (first-frame = that warm-up, with shader compilation); Cycles/EEVEE: "
+             f"time of the shadowed render only (median of the repeated renders), first-frame = an untimed "
+             f"1-sample warm-up render; their error is that of V = shadowed/unshadowed at that sample count "
+             f"(seed {a['peer_seed']}). All errors against Cycles at {a['reference_samples']} spp (seed "
+             f"{a['reference_seeds'][0]}).", ""]
+    if results.get("summary"):
+        lines += ["## Summary", "", "```", summary_table(results["summary"]), "```", ""]
+    head = ["technique", "config", "time ms (median)", "first-frame ms", "mae_shadow", "rmse", "max_abs",
+            "pixel_match"]
+    for e in results["scenes"]:
+        f, ref = e["noise_floor"], e["reference"]
+        lines += [f"## {e['scene']} ({e['resolution'][0]}×{e['resolution'][1]}, {e['triangles']} triangles, "
+                  f"{e['lights']} light{'s' if e['lights'] != 1 else ''})", "",
+                  f"Reference: Cycles {ref['samples']} spp, {ref['seconds_pair']:.1f} s for the shadowed + "
+                  f"unshadowed pair{' (cached)' if ref['cached'] else ''}. Noise floor (seed "
+                  f"{a['reference_seeds'][0]} vs {a['reference_seeds'][1]}): mae_shadow "
+                  f"{_num(f.get('mae_shadow'), '.4f')}, rmse {_num(f.get('rmse'), '.4f')}, max_abs "
+                  f"{_num(f.get('max_abs'), '.4f')}, pixel_match {_num(f.get('pixel_match'), '.4f')}.", "",
+                  "| " + " | ".join(head) + " |", "|" + "|".join(["---", "---"] + ["---:"] * 6) + "|"]
+        for r in e["rows"]:
+            m = r["metrics"]
+            lines.append("| " + " | ".join([
+                r["technique"], r["config"], _num(r["time_ms"], ".1f"), _num(r.get("first_frame_ms"), ".1f"),
+                _num(m.get("mae_shadow"), ".4f"), _num(m.get("rmse"), ".4f"), _num(m.get("max_abs"), ".4f"),
+                _num(m.get("pixel_match"), ".4f")]) + " |")
+        lines.append("")
+    lines.append(f"Total wall time: {results.get('wall_seconds', float('nan')):.0f} s")
+    return "\n".join(lines) + "\n"
+
+
+def plot_pareto(entry: dict, machine: dict, path: str) -> None:
+    """time (ms, log) against mae_shadow: one curve per technique and per peer, the noise floor dashed."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 5.5), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    groups: dict[tuple, list] = {}
+    for r in entry["rows"]:
+        groups.setdefault((r["kind"], r["technique"]), []).append(r)
+    ys = []
+    for (kind, tech), rows in groups.items():
+        pts = sorted([(r["time_ms"], r["metrics"]["mae_shadow"], r) for r in rows
+                      if _finite(r["time_ms"]) and r["time_ms"] > 0 and _finite(r["metrics"]["mae_shadow"])],
+                     key=lambda p: p[0])
+        if not pts:
+            continue
+        x, y = [p[0] for p in pts], [p[1] for p in pts]
+        ys += y
+        if kind == "peer":
+            ax.plot(x, y, linestyle="--", marker="s", markersize=5, label=f"{tech} (spp)", alpha=0.85)
+            for xi, yi, r in pts:
+                ax.annotate(str(r["samples"]), (xi, yi), textcoords="offset points", xytext=(4, 3), fontsize=7)
+        else:
+            many = len(pts) > 8
+            ax.plot(x, y, marker="o", markersize=4 if many else 5, linewidth=0.8 if many else 1.5,
+                    alpha=0.75 if many else 1.0, label=tech)
+            if len(pts) > 1:    # label the technique's own Pareto front only: the rest would pile up
+                best = math.inf
+                for xi, yi, r in pts:
+                    if yi < best:
+                        best = yi
+                        text = r["config"] if len(r["config"]) <= 28 else r["config"][:27] + "…"
+                        ax.annotate(text, (xi, yi), textcoords="offset points", xytext=(4, -9), fontsize=6,
+                                    alpha=0.8)
+    floor = entry["noise_floor"].get("mae_shadow")
+    if _finite(floor):
+        ax.axhline(floor, color="grey", linestyle="--", linewidth=1.2,
+                   label=f"Cycles noise floor ({entry['reference']['samples']} spp)")
+        ys.append(floor)
+    ax.set_xscale("log")
+    pos = [y for y in ys if y > 0]
+    if pos and max(pos) / min(pos) > 20:
+        ax.set_yscale("log")
+    else:
+        ax.set_ylim(bottom=0)
+    ax.set_xlabel("time per frame (ms, log scale)")
+    ax.set_ylabel("mae_shadow vs Cycles reference (lower is better)")
+    res = entry["resolution"]
+    ax.set_title(f"{entry['scene']} — {res[0]}×{res[1]} — {machine_label(machine)}", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    _write_atomic(path, buf.getvalue())
+
+
+def write_outputs(out_dir: str, results: dict, plot_scene: dict | None = None) -> None:
+    """results.json/.csv/.md, and the Pareto plot of `plot_scene` (of every scene when None)."""
+    os.makedirs(out_dir, exist_ok=True)
+    _write_atomic(os.path.join(out_dir, "results.json"),
+                  json.dumps(_clean(results), indent=1, allow_nan=False, default=str))
+    _write_atomic(os.path.join(out_dir, "results.csv"), results_csv(results))
+    _write_atomic(os.path.join(out_dir, "results.md"), results_markdown(results))
+    for entry in ([plot_scene] if plot_scene is not None else results["scenes"]):
+        plot_pareto(entry, results["machine"], os.path.join(out_dir, f"pareto_{entry['scene']}.png"))

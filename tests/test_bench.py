@@ -1,0 +1,90 @@
+"""engine.bench on one small scene: the outputs exist, hold the expected rows, and make sense (needs bpy;
+about 15 s: a 64-spp Cycles reference pair for two seeds at 48×48, two Cycles peers, two techniques)."""
+import csv
+import io
+import json
+import math
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from penumbra.engine import bench  # noqa: E402
+
+TECHNIQUES = ["HARD", "PCSS"]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench")
+    log = io.StringIO()
+    results = bench.run_bench(str(out), scenes=["plane"], techniques=TECHNIQUES, resolution=(48, 48),
+                              reference_samples=64, repeats=1, peers=["cycles"], cycles_samples=(1, 16),
+                              target_samples=16, cache_dir=str(out / "cache"), stream=log)
+    return out, results, log.getvalue()
+
+
+def test_files_exist(run):
+    out, _, _ = run
+    for name in ("results.json", "results.csv", "results.md", "pareto_plane.png"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    assert (out / "pareto_plane.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not list(out.glob("*.tmp")), "temporary files left behind"
+
+
+def test_json_rows(run):
+    out, results, log = run
+    data = json.loads((out / "results.json").read_text())
+    assert data["machine"]["gl_renderer"] and data["machine"]["cpu"]
+    (scene,) = data["scenes"]
+    assert scene["scene"] == "plane" and scene["resolution"] == [48, 48]
+    assert scene["reference"]["samples"] == 64
+    assert math.isfinite(scene["noise_floor"]["mae_shadow"])
+    ours = [r for r in scene["rows"] if r["kind"] == "ours"]
+    peers = [r for r in scene["rows"] if r["kind"] == "peer"]
+    assert [r["technique"] for r in ours] == TECHNIQUES
+    assert [(r["technique"], r["samples"]) for r in peers] == [("Cycles", 1), ("Cycles", 16)]
+    for r in scene["rows"]:
+        assert r["time_ms"] > 0, r
+        for key in ("mae_shadow", "mae", "rmse", "max_abs", "pixel_match"):
+            assert math.isfinite(r["metrics"][key]), (r["technique"], r["config"], key)
+    for r in ours:
+        assert r["first_frame_ms"] > 0 and r["repeats"] == 1
+        assert r["stages_ms"]["shadow_map"] >= 0 and "visibility" in r["stages_ms"]
+    # Cycles' error is its noise: 1 spp is far noisier than 16 spp.
+    assert peers[0]["metrics"]["mae_shadow"] > peers[1]["metrics"]["mae_shadow"]
+    assert "plane HARD default" in log
+
+
+def test_csv_and_markdown(run):
+    out, _, _ = run
+    rows = list(csv.DictReader(io.StringIO((out / "results.csv").read_text())))
+    assert [(r["technique"], r["config"]) for r in rows] == [("HARD", "default"), ("PCSS", "default"),
+                                                              ("Cycles", "1 spp"), ("Cycles", "16 spp")]
+    assert all(float(r["time_ms"]) > 0 and math.isfinite(float(r["mae_shadow"])) for r in rows)
+    md = (out / "results.md").read_text()
+    assert "## plane" in md and "Noise floor" in md
+    assert md.count("| HARD | default |") == 1 and md.count("| Cycles | 16 spp |") == 1
+    assert "| technique | config | time ms (median) | first-frame ms | mae_shadow | rmse | max_abs | pixel_match |" in md
+
+
+def test_summary_prints(run, capsys):
+    _, results, _ = run
+    (s,) = results["summary"]
+    assert s["scene"] == "plane" and s["target_ms"] > 0
+    print(bench.summary_table(results["summary"]))
+    text = capsys.readouterr().out
+    assert "Cycles-16" in text and "plane" in text
+    line = next(l for l in text.splitlines() if l.startswith("plane"))
+    assert ("none" in line) == (s["best"] is None)
+    if s["best"] is not None:
+        assert s["best"]["mae_shadow"] <= s["target_mae_shadow"] and s["speedup"] > 0
+
+
+def test_sweep_table():
+    assert [c["shadow_map_size"] for c in bench.sweep_configs("HARD")] == [256, 512, 1024, 2048]
+    pcss = bench.sweep_configs("PCSS")
+    assert {"pcss_blocker_samples": 64, "pcss_filter_samples": 128} in pcss
+    labels = [label for label, _, _ in bench.configurations("PCF", bench.RenderSettings(), sweep=True)]
+    assert labels == ["map=256", "map=512", "map=1024", "map=2048", "radius=1", "radius=4"]   # radius=2 is map=1024
+    assert [label for label, _, _ in bench.configurations("PCF", bench.RenderSettings(), sweep=False)] == ["default"]
