@@ -242,6 +242,7 @@ def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bo
 
     import bpy
 
+    from .scenes import black_world
     view_layer = view_layer or reference._pick_view_layer(scene)
     st = reference._Settings()
     temp_ids = []
@@ -250,34 +251,14 @@ def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bo
     try:
         mat = reference._make_material()
         temp_ids.append(("materials", mat))
-        world = reference._make_world()
+        world = black_world("penumbra_eevee_black")
         temp_ids.append(("worlds", world))
         st.set(r, "engine", "BLENDER_EEVEE")
         st.set(scene.eevee, "taa_render_samples", int(samples))
         st.set(scene.eevee, "use_raytracing", False)
         st.set(scene.eevee, "use_shadows", True)
         st.set(r, "filter_size", reference.POINT_FILTER_WIDTH)
-        st.set(scene, "world", world)
-        st.set(r, "resolution_x", int(width))
-        st.set(r, "resolution_y", int(height))
-        st.set(r, "resolution_percentage", 100)
-        st.set(r, "use_border", False)
-        st.set(r, "use_motion_blur", False)
-        st.set(r, "use_compositing", False)
-        st.set(r, "use_sequencer", False)
-        st.set(r, "film_transparent", False)
-        st.set(r, "use_file_extension", True)
-        st.set(r, "use_single_layer", True)
-        img = r.image_settings
-        st.set(img, "media_type", "MULTI_LAYER_IMAGE")
-        st.set(img, "file_format", "OPEN_EXR_MULTILAYER")
-        st.set(img, "color_depth", "32")
-        st.set(img, "exr_codec", "ZIP")
-        for layer in scene.view_layers:
-            if layer != view_layer and layer.use:
-                st.set(layer, "use", False)
-        st.set(view_layer, "use", True)
-        st.set(view_layer, "material_override", mat)
+        reference.set_measurement_output(st, scene, world, mat, view_layer, width, height)
         lights = {ob.data for ob in scene.objects if ob.type == "LIGHT"}
         for light in lights:
             if hasattr(light, "use_shadow_jitter"):

@@ -273,19 +273,6 @@ def _make_material():
     return mat
 
 
-def _make_world():
-    import bpy
-
-    world = bpy.data.worlds.new("penumbra_reference_black")
-    world.color = (0.0, 0.0, 0.0)
-    if world.node_tree is not None:
-        for node in world.node_tree.nodes:
-            if node.type == "BACKGROUND":
-                node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-                node.inputs["Strength"].default_value = 0.0
-    return world
-
-
 def read_exr_combined(path: str, layer: str | None = None) -> np.ndarray:
     """(H, W, 3) float32 RGB of the Combined pass in a (multi-part or single-part) EXR written by
     Blender, row 0 = bottom (rows flipped from the file's top-down order)."""
@@ -316,10 +303,41 @@ def read_exr_combined(path: str, layer: str | None = None) -> np.ndarray:
     return np.ascontiguousarray(img[::-1])
 
 
+def set_measurement_output(st: "_Settings", scene, world, material, view_layer, width: int, height: int):
+    """Scene settings every measurement render shares (Cycles reference, EEVEE peer): black world, white
+    Lambert override, exact resolution, nothing but the one view layer, 32-bit multilayer EXR output.
+    Every change goes through `st`, so it is undone afterwards."""
+    r = scene.render
+    st.set(scene, "world", world)
+    st.set(r, "resolution_x", int(width))
+    st.set(r, "resolution_y", int(height))
+    st.set(r, "resolution_percentage", 100)
+    st.set(r, "use_border", False)
+    st.set(r, "use_motion_blur", False)
+    st.set(r, "use_compositing", False)
+    st.set(r, "use_sequencer", False)
+    st.set(r, "film_transparent", False)
+    st.set(r, "use_file_extension", True)
+    st.set(r, "use_single_layer", True)
+    img = r.image_settings
+    # media_type before file_format (restored in reverse: file_format is undone first, then media_type,
+    # which is the order Blender needs when going back to a single-layer format).
+    st.set(img, "media_type", "MULTI_LAYER_IMAGE")
+    st.set(img, "file_format", "OPEN_EXR_MULTILAYER")
+    st.set(img, "color_depth", "32")
+    st.set(img, "exr_codec", "ZIP")
+    for layer in scene.view_layers:
+        if layer != view_layer and layer.use:
+            st.set(layer, "use", False)
+    st.set(view_layer, "use", True)
+    st.set(view_layer, "material_override", material)
+
+
 def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_width, view_layer):
     """Render shadowed and unshadowed images; returns (shadowed, unshadowed, seconds)."""
     import bpy
 
+    from .scenes import black_world
     global render_count
     st = _Settings()
     temp_ids = []
@@ -329,7 +347,7 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
     try:
         mat = _make_material()
         temp_ids.append(("materials", mat))
-        world = _make_world()
+        world = black_world("penumbra_reference_black")
         temp_ids.append(("worlds", world))
 
         st.set(r, "engine", "CYCLES")
@@ -345,28 +363,7 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
         # Cycles ignores filter_width for BOX (always 1 px), so a narrow Gaussian is the point sampler.
         st.set(cy, "pixel_filter_type", filter_type)
         st.set(cy, "filter_width", float(filter_width))
-        st.set(scene, "world", world)
-        st.set(r, "resolution_x", int(width))
-        st.set(r, "resolution_y", int(height))
-        st.set(r, "resolution_percentage", 100)
-        st.set(r, "use_border", False)
-        st.set(r, "use_motion_blur", False)
-        st.set(r, "use_compositing", False)
-        st.set(r, "use_sequencer", False)
-        st.set(r, "use_file_extension", True)
-        st.set(r, "use_single_layer", True)
-        img = r.image_settings
-        # media_type before file_format (restored in reverse: file_format is undone first, then media_type,
-        # which is the order Blender needs when going back to a single-layer format).
-        st.set(img, "media_type", "MULTI_LAYER_IMAGE")
-        st.set(img, "file_format", "OPEN_EXR_MULTILAYER")
-        st.set(img, "color_depth", "32")
-        st.set(img, "exr_codec", "ZIP")
-        for layer in scene.view_layers:
-            if layer != view_layer and layer.use:
-                st.set(layer, "use", False)
-        st.set(view_layer, "use", True)
-        st.set(view_layer, "material_override", mat)
+        set_measurement_output(st, scene, world, mat, view_layer, width, height)
         for ob in scene.objects:
             if ob.type == "LIGHT" and ob.visible_camera:
                 st.set(ob, "visible_camera", False)  # the light's own emitter must not appear in the image

@@ -80,14 +80,19 @@ def _setup_scene(scene: bpy.types.Scene, resolution) -> None:
     scene.view_settings.look = "None"
     scene.view_settings.exposure = 0.0
     scene.view_settings.gamma = 1.0
-    world = bpy.data.worlds.new("World")
+    scene.world = black_world("World")
+
+
+def black_world(name: str) -> bpy.types.World:
+    """A world that emits nothing, so Cycles' light comes from the lights alone."""
+    world = bpy.data.worlds.new(name)
     world.color = (0.0, 0.0, 0.0)
     if world.node_tree is not None:
         for node in world.node_tree.nodes:
             if node.bl_idname == "ShaderNodeBackground":
                 node.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
                 node.inputs["Strength"].default_value = 0.0
-    scene.world = world
+    return world
 
 
 def _link(scene, obj):
