@@ -131,6 +131,8 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
                     lc.structures[DEPTH_MAP] = frame.render_depth_map(view)
             with t.stage("visibility"):
                 technique.visibility(frame, lc, visibility)
+            if lc.stats:
+                stats.setdefault("per_light", []).append({"light": light.name, **lc.stats})
             for name, array in lc.debug.items():    # several lights: keep the per-pixel maximum
                 debug[name] = array if name not in debug else np.maximum(debug[name], array)
         with t.stage("accumulate"):

@@ -279,6 +279,11 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
         out.size_y = float(size_y * scale[1])
         if out.size_x <= 0.0 or out.size_y <= 0.0:
             warn(f"area light '{name}' has zero size: rendered as a point light (hard shadow)")
+        out.texture = light_texture(light, warn)
+        if out.texture is not None:
+            mean = out.texture.reshape(-1, 3).mean(axis=0)
+            out.color = out.color * mean
+            out.texture = (out.texture / np.maximum(mean, 1e-12)).astype(np.float32)
         if float(getattr(light, "spread", math.pi)) < math.pi - 1e-6:
             warn(f"area light '{name}' has a spread below 180°: rendered with the full 180° spread")
     elif kind in (POINT, SPOT):
@@ -309,6 +314,36 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
 # ----------------------------------------------------------------------------------------------------------
 # camera
 # ----------------------------------------------------------------------------------------------------------
+
+def light_texture(light, warn) -> np.ndarray | None:
+    """The image an area light's Emission colour comes from, as (H, W, 3) linear RGB, or None.
+
+    Recognised: Light Output ← Emission whose Color input is linked (through reroutes) from an Image
+    Texture node with an image; the image spans the light's local [-1, 1]² with u along +X and v along +Y
+    (Blender's default light UVs). Anything else linked into the colour falls back to the plain light
+    colour with a warning."""
+    tree = getattr(light, "node_tree", None) if getattr(light, "use_nodes", False) else None
+    if tree is None:
+        return None
+    for node in tree.nodes:
+        if node.type != "EMISSION" or not node.inputs["Color"].is_linked:
+            continue
+        source = _follow_reroutes(node.inputs["Color"])
+        src_node = source[0] if source is not None else None
+        image = getattr(src_node, "image", None) if src_node is not None and src_node.type == "TEX_IMAGE" else None
+        if image is None or image.size[0] == 0 or image.size[1] == 0:
+            warn(f"light '{light.name}': emission colour comes from a node setup Penumbra does not read; "
+                 "using the light colour")
+            return None
+        w, h = image.size
+        pixels = np.empty(w * h * image.channels, np.float32)
+        image.pixels.foreach_get(pixels)
+        rgb = pixels.reshape(h, w, image.channels)[..., :3]
+        if not image.is_float and image.colorspace_settings.name == "sRGB":
+            rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+        return np.ascontiguousarray(rgb, dtype=np.float32)
+    return None
+
 
 def render_size(scene) -> tuple[int, int]:
     r = scene.render

@@ -25,6 +25,8 @@ class RenderSettings:
     seed: int = 0
     # passes beyond Combined/Depth/Visibility/Unshadowed
     debug_passes: bool = False
+    # techniques record per-light statistics in FrameResult.stats["per_light"] (may cost a readback)
+    collect_stats: bool = False
     # Settings a technique declares itself (Technique.options), by option name; unset ones take defaults.
     extras: dict = field(default_factory=dict)
 

@@ -587,3 +587,27 @@ def test_million_triangles_from_instances_time(scn):
           f"{cpu * 1e3:.0f} ms CPU")
     assert s.triangle_count == 90000 * 12
     assert wall < 3.0
+
+
+def test_textured_area_light(scn):
+    """An Image Texture feeding the Emission colour becomes Light.texture (linear, mean 1), its mean
+    colour folded into the light colour."""
+    ld = bpy.data.objects["Key"].data
+    ld.type = "AREA"
+    ld = bpy.data.objects["Key"].data
+    ld.use_nodes = True
+    img = bpy.data.images.new("tex", 4, 2)
+    px = np.zeros((2, 4, 4), np.float32)
+    px[..., 3] = 1.0
+    px[:, :2, 0] = 1.0          # left half red, right half green (sRGB 1.0 = linear 1.0)
+    px[:, 2:, 1] = 1.0
+    img.pixels.foreach_set(px.ravel())
+    tex = ld.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    emission = next(n for n in ld.node_tree.nodes if n.type == "EMISSION")
+    ld.node_tree.links.new(tex.outputs["Color"], emission.inputs["Color"])
+    s = snap()
+    light = s.lights[0]
+    assert light.texture.shape == (2, 4, 3)
+    np.testing.assert_allclose(light.texture.reshape(-1, 3).mean(axis=0)[:2], [1.0, 1.0], atol=1e-6)
+    np.testing.assert_allclose(light.color[:2] / np.asarray(ld.color)[:2], [0.5, 0.5], atol=1e-6)

@@ -24,6 +24,9 @@ class LightContext:
     casters: tuple | None               # world AABB of the casters, None when there are none
     uniforms: dict                      # light-view uniforms plus bias settings
     structures: dict = field(default_factory=dict)
+    # Statistics the technique reports for this light (with settings.collect_stats or debug passes on); the
+    # pipeline lists them in FrameResult.stats["per_light"].
+    stats: dict = field(default_factory=dict)
     # Debug passes this light produced: name → (H, W, C) float32 array (row 0 at the bottom). With several
     # lights the pipeline keeps the per-pixel maximum.
     debug: dict = field(default_factory=dict)

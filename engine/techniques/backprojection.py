@@ -1,0 +1,359 @@
+"""BACKPROJECTION: soft shadows by backprojecting depth-map micro-occluders onto the light.
+
+Schwarz & Stamminger, "Bitmask Soft Shadows" (2007), with its baseline Guennebaud, Barthe & Paulin, "Real-time
+soft shadow mapping by backprojection" (GBP06) as one setting (micropatches + gap filling, area accumulation,
+HSM). Per pixel, in glsl/backprojection/visibility.comp:
+
+* search area = receiver–light pyramid ∩ the depth map's near plane (§2.1), refined with a min/max hierarchy
+  (HSM, GBP06) or the multi-scale shadow map (MSSM, §5); pixels proven fully lit or in umbra stop there;
+* every texel in the area is a micro-occluder: a micropatch (GBP06, with gap filling towards the left/bottom
+  neighbours) or a microquad (§4, texel centres as vertices), unprojected and backprojected onto the light;
+* occlusion is accumulated as an area (GBP06, clamped to 1) or OR-ed into an N×N occlusion bitmask of light
+  samples (§3: 8×8, 16×16, 16×16 jittered = 8×8 tiling of the 2×2 RGSS pattern, 32×32); V = unset / all;
+* at most b×b micro-occluders per layer: a coarser hierarchy level, sampled on its own grid, when the area is
+  larger (§5);
+* post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
+* depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
+* round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
+  per-sample colours when the snapshot's Light carries a `texture` (see `light_texture`).
+
+Light kinds: AREA (all shapes) exactly; POINT/SPOT with a radius as a disk of that radius facing the map's
+axis; SUN with its orthographic map: micro-occluders backproject to directions (offset per unit depth); delta
+lights (no extent) fall back to a hard shadow-map test.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..gpu.programs import program
+from ..snapshot import AREA, DISK, ELLIPSE, SUN
+from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
+
+NO_OCCLUDER = 3.0e38
+
+PRIMITIVES = (("MICROPATCH", "Micropatches", "Each texel a square parallel to the light (GBP06)"),
+              ("MICROQUAD", "Microquads", "Texel centres as quad vertices (Schwarz & Stamminger §4)"))
+ACCUMULATIONS = (
+    ("AREA", "Area accumulation", "Sum of the backprojected areas, clamped to 1 (GBP06): overlaps count twice"),
+    ("BITMASK_8", "Bitmask 8×8", "Occlusion bitmask, regular 8×8 light samples"),
+    ("BITMASK_16", "Bitmask 16×16", "Occlusion bitmask, regular 16×16 light samples"),
+    ("BITMASK_16J", "Bitmask 16×16 jittered", "Occlusion bitmask, 8×8 tiling of the 2×2 rotated grid"),
+    ("BITMASK_32", "Bitmask 32×32", "Occlusion bitmask, regular 32×32 light samples"),
+)
+REFINEMENTS = (("NONE", "None", "Search the whole pyramid ∩ near plane; no lit/umbra classification"),
+               ("HSM", "HSM", "Min/max mip pyramid (GBP06)"),
+               ("MSSM", "MSSM", "Multi-scale shadow map: full resolution at every level (§5)"))
+
+BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
+REFINE = {"NONE": 0, "HSM": 1, "MSSM": 2}
+PEEL_EPS = 1e-4          # relative depth separation between peeled layers
+MSSM_BUDGET_BYTES = 512 << 20   # full-resolution MSSM levels beyond this come from the HSM (§5's hybrid)
+
+
+def sample_pattern(accumulation: str) -> tuple[int, tuple, tuple]:
+    """(N, jitter_x per row parity, jitter_y per column parity): sample (column k, row l) of the N×N bitmask
+    sits at ((k + jx[l & 1]) / N, (l + jy[k & 1]) / N) in [0, 1]² over the light's bounding rectangle.
+
+    §3: the jittered 16×16 pattern is an 8×8 tiling of the 2×2 rotated-grid (RGSS) cell whose samples are
+    (3/8, 1/8), (7/8, 3/8), (1/8, 5/8), (5/8, 7/8) of the cell: in units of the 16×16 grid that is
+    x = k + (¾ on even rows, ¼ on odd rows), y = l + (¼ on even columns, ¾ on odd columns)."""
+    n = BITS[accumulation]
+    if accumulation == "BITMASK_16J":
+        return n, (0.75, 0.25), (0.25, 0.75)
+    return n, (0.5, 0.5), (0.5, 0.5)
+
+
+def sample_positions(accumulation: str) -> np.ndarray:
+    """(N, N, 2) sample positions in [0, 1]², indexed [row l, column k]."""
+    n, jx, jy = sample_pattern(accumulation)
+    k = np.arange(n)[None, :]
+    l_ = np.arange(n)[:, None]
+    x = (k + np.array(jx)[l_ & 1]) / n
+    y = (l_ + np.array(jy)[k & 1]) / n
+    return np.stack(np.broadcast_arrays(x, y), axis=-1)
+
+
+def is_round(light) -> bool:
+    return light.kind != AREA or light.shape in (DISK, ELLIPSE)
+
+
+def valid_mask(accumulation: str, round_: bool) -> np.ndarray:
+    """(N, N) bool: samples inside the light's shape (the inscribed ellipse for round lights)."""
+    pos = sample_positions(accumulation)
+    if not round_:
+        return np.ones(pos.shape[:2], bool)
+    q = pos * 2.0 - 1.0
+    return (q ** 2).sum(-1) <= 1.0
+
+
+def light_texture(light):
+    """The light's emission texture, or None: (H, W, 3) float linear RGB over the light's local [-1, 1]²
+    (row 0 at local y = −1, column 0 at x = −1), as `Light.texture` (a proposed snapshot field)."""
+    tex = getattr(light, "texture", None)
+    if tex is None:
+        return None
+    tex = np.asarray(tex, np.float32)
+    if tex.ndim != 3 or tex.shape[2] < 3 or tex.shape[0] < 1 or tex.shape[1] < 1:
+        return None
+    return np.nan_to_num(np.clip(tex[..., :3], 0.0, None))
+
+
+def sample_colors(texture: np.ndarray, accumulation: str) -> np.ndarray:
+    """(N, N, 3): the texture bilinearly sampled at each bitmask sample (§3.3)."""
+    pos = sample_positions(accumulation)
+    h, w = texture.shape[:2]
+    x = np.clip(pos[..., 0] * w - 0.5, 0, w - 1)
+    y = np.clip(pos[..., 1] * h - 0.5, 0, h - 1)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    top = texture[y0, x0] * (1 - fx) + texture[y0, x1] * fx
+    bottom = texture[y1, x0] * (1 - fx) + texture[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def luminance(rgb) -> np.ndarray:
+    return np.asarray(rgb, np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def _mask_rows(valid: np.ndarray) -> list[int]:
+    rows = [0] * len(valid)
+    for l_, row in enumerate(valid):
+        rows[l_] = int(sum(1 << k for k, on in enumerate(row) if on))
+    return rows
+
+
+def _set(prog, values: dict) -> None:
+    for name, value in values.items():
+        if name in prog:
+            prog[name].value = value
+
+
+def _mat(m) -> tuple:
+    return tuple(np.asarray(m, dtype=np.float32).T.ravel())
+
+
+def level_count(width: int, height: int) -> int:
+    """Hierarchy levels so that the coarsest cell (2^(L−1) texels) covers the whole map."""
+    return max(int(math.ceil(math.log2(max(width, height, 1)))), 0) + 1
+
+
+# ------------------------------------------------------------------------------------------------------------
+# structures: depth peeling, HSM, MSSM
+# ------------------------------------------------------------------------------------------------------------
+
+def peel_layers(frame, view, first, layers: int) -> list:
+    """`layers` depth maps from the light centre: `first` and up to three peeled layers behind it (§3.2)."""
+    out = [first]
+    if layers <= 1 or not frame.geometry.has_casters:
+        return out
+    ctx = frame.ctx
+    prog = program(frame.worker, "common/depth.vert", "backprojection/peel.frag")
+    _set(prog, {"u_light_view": _mat(view.view), "u_light_view_proj": _mat(view.view_proj),
+                "u_peel_eps": PEEL_EPS})
+    for _ in range(layers - 1):
+        tex, fbo = frame.new_depth_target(view)
+        fbo.use()
+        fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(ctx.DEPTH_TEST)
+        ctx.disable(ctx.CULL_FACE)
+        out[-1].use(location=0)
+        prog["u_prev"].value = 0
+        frame.geometry.render(ctx, prog, "caster", position_only=True)
+        out.append(tex)
+    return out
+
+
+def build_hsm(frame, depth, width: int, height: int):
+    """Min/max pyramid (GBP06) in a power-of-two padded RG32F mipmapped texture. Returns (texture, levels)."""
+    pw, ph = 1 << max(width - 1, 0).bit_length(), 1 << max(height - 1, 0).bit_length()
+    levels = level_count(pw, ph)
+    tex = frame.texture((pw, ph), 2)
+    tex.build_mipmaps(0, levels - 1)
+    tex.filter = (0x2600, 0x2600)
+    prog = program(frame.worker, compute="backprojection/hsm.comp")
+    depth.use(location=0)
+    _set(prog, {"u_depth": 0, "u_map_size": (width, height)})
+    for l_ in range(levels):
+        size = (max(pw >> l_, 1), max(ph >> l_, 1))
+        tex.bind_to_image(0, read=False, write=True, level=l_)
+        if l_ > 0:
+            tex.bind_to_image(1, read=True, write=False, level=l_ - 1)
+        _set(prog, {"u_first": int(l_ == 0), "u_dst_size": size})
+        prog.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
+        frame.ctx.memory_barrier()
+    return tex, levels
+
+
+def mssm_levels(width: int, height: int) -> int:
+    """Full-resolution MSSM levels kept: all of them unless that exceeds MSSM_BUDGET_BYTES (a 4096² map would
+    need 1.7 GB); the coarser ones are then read from the HSM — §5's hybrid of pyramid and MSSM, with the
+    roles swapped (fine levels MSSM, coarse HSM), which keeps the tight fine bounds that matter most."""
+    return max(1, min(level_count(width, height), MSSM_BUDGET_BYTES // max(width * height * 8, 1)))
+
+
+def build_mssm(frame, depth, width: int, height: int):
+    """Multi-scale shadow map (§5) as an RG32F texture array, one full-resolution layer per level. The
+    caller releases it. Returns (texture array, levels)."""
+    levels = mssm_levels(width, height)
+    tex = frame.ctx.texture_array((width, height, levels), 2, dtype="f4")
+    tex.filter = (0x2600, 0x2600)
+    prog = program(frame.worker, compute="backprojection/mssm.comp")
+    depth.use(location=0)
+    _set(prog, {"u_depth": 0, "u_map_size": (width, height)})
+    tex.bind_to_image(0, read=True, write=True)
+    tex.bind_to_image(1, read=True, write=True)
+    for l_ in range(levels):
+        _set(prog, {"u_level": l_})
+        prog.run((width + 7) // 8, (height + 7) // 8, 1)
+        frame.ctx.memory_barrier()
+    return tex, levels
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the technique
+# ------------------------------------------------------------------------------------------------------------
+
+class Backprojection(Technique):
+    identifier = "BACKPROJECTION"
+    label = "Backprojection (bitmask soft shadows)"
+    description = ("Depth-map texels backprojected onto the light (Schwarz & Stamminger 2007, GBP06): occlusion "
+                   "bitmasks with correct occluder fusion, microquads, HSM/MSSM search-area refinement, depth "
+                   "peeling. Area lights of every shape, point/spot radius as a disk, sun as a disk of "
+                   "directions; textured lights through per-sample colours")
+    needs = (DEPTH_MAP,)
+    options = (
+        Option("bp_primitive", "MICROPATCH", "Micro-occluders", "How depth-map texels become occluders",
+               items=PRIMITIVES),
+        Option("bp_gap_fill", True, "Gap filling",
+               "Micropatches: extend each patch to its left/bottom occluding neighbour (GBP06)"),
+        Option("bp_accumulation", "BITMASK_16J", "Occlusion", "How backprojected occlusion is combined",
+               items=ACCUMULATIONS),
+        Option("bp_refinement", "MSSM", "Search refinement",
+               "Narrow the search area and classify fully lit / umbra pixels (§5)", items=REFINEMENTS),
+        Option("bp_budget", 16, "Budget", "At most b×b micro-occluders per pixel and depth layer; larger search "
+               "areas use a coarser level", min=2, max=64),
+        Option("bp_filter_passes", 0, "Filter passes",
+               "Post-filter passes of the bitmask visibility driven by the area values (§3.1)", min=0, max=16),
+        Option("bp_layers", 1, "Depth layers", "Depth-peeled layers from the light centre (§3.2)", min=1, max=4),
+    )
+    debug_passes = (
+        ("BP Class", 3, "RGB", "COLOR"),            # green: proven lit, red: umbra, blue: backprojected
+        ("BP Level", 1, "X", "VALUE"),              # hierarchy level the micro-occluders came from
+        ("BP Count", 1, "X", "VALUE"),              # micro-occluders processed (all layers)
+        ("BP Color Visibility", 3, "RGB", "COLOR"),  # per-channel visibility of a textured light (§3.3)
+    )
+    sweep = tuple(
+        [{"bp_accumulation": a, "bp_primitive": p, "bp_refinement": r}
+         for r in ("HSM", "MSSM")
+         for a, p in (("AREA", "MICROPATCH"), ("AREA", "MICROQUAD"), ("BITMASK_8", "MICROPATCH"),
+                      ("BITMASK_16", "MICROPATCH"), ("BITMASK_16J", "MICROPATCH"), ("BITMASK_32", "MICROPATCH"),
+                      ("BITMASK_16J", "MICROQUAD"))]
+        + [{"bp_refinement": "NONE"}, {"bp_layers": 2}, {"bp_filter_passes": 5}, {"bp_budget": 8},
+           {"bp_budget": 32}, {"bp_gap_fill": False}, {"shadow_map_size": 512}, {"shadow_map_size": 2048}])
+
+    def settings_of(self, s) -> dict:
+        return {o.name: s.option(o.name) for o in self.options}
+
+    def visibility(self, frame, lc, out):
+        s, light, view = frame.settings, lc.light, lc.view
+        o = self.settings_of(s)
+        accumulation, refine = o["bp_accumulation"], REFINE[o["bp_refinement"]]
+        bits, primitive = BITS[accumulation], int(o["bp_primitive"] == "MICROQUAD")
+        layers = int(o["bp_layers"])
+        filter_passes = int(o["bp_filter_passes"]) if bits else 0
+        round_ = is_round(light)
+        texture = light_texture(light) if bits else None
+        depth = lc.structures[DEPTH_MAP]
+        w, h = view.width, view.height
+        size = (frame.width, frame.height)
+        extra = []          # resources not owned by the frame
+        try:
+            with frame.timings.stage("bp_peel"):
+                maps = peel_layers(frame, view, depth, layers)
+            samplers = {"g_irradiance": lc.irradiance, "u_depth": depth}
+            levels = level_count(w, h)
+            with frame.timings.stage("bp_hsm"):
+                for i, m in enumerate(maps):
+                    if i == 0 and refine == 2 and mssm_levels(w, h) >= levels:
+                        continue            # layer 0 reads the MSSM
+                    samplers[f"u_hsm{i}"], _ = build_hsm(frame, m, w, h)
+            n_mssm = 0
+            if refine == 2:
+                with frame.timings.stage("bp_mssm"):
+                    mssm, n_mssm = build_mssm(frame, depth, w, h)
+                    extra.append(mssm)
+                    samplers["u_mssm"] = mssm
+
+            shape = light_shape_uniforms(light, view)
+            n, jx, jy = sample_pattern(accumulation) if bits else (0, (0.5, 0.5), (0.5, 0.5))
+            valid = valid_mask(accumulation, round_) if bits else np.zeros((0, 0), bool)
+            uniforms = {**lc.uniforms, "u_light_half": shape["u_light_half"], "u_round": int(round_),
+                        "u_delta": int(light.is_delta), "u_budget": int(o["bp_budget"]), "u_levels": int(levels),
+                        "u_mssm_levels": int(n_mssm),
+                        "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
+                        "u_valid_count": float(max(valid.sum(), 1))}
+            info = frame.texture(size, 4)
+            images = {0: out, 1: info}
+            rgb_tex = None
+            if texture is not None:
+                colors = sample_colors(texture, accumulation).astype(np.float32)
+                lum = luminance(colors).astype(np.float32)
+                table = np.concatenate([colors, lum[..., None]], axis=-1) * valid[..., None]
+                color_tex = frame.texture((n, n), 4)
+                color_tex.write(np.ascontiguousarray(table, np.float32).tobytes())
+                samplers["u_sample_color"] = color_tex
+                total = table.reshape(-1, 4).sum(axis=0)
+                uniforms["u_color_total"] = tuple(float(v) for v in total)
+                rgb_tex = frame.texture(size, 4)
+                images[2] = rgb_tex
+            defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
+                       "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
+                       "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes)}
+            frame.progress.check()
+            with frame.timings.stage("bp_gather"):
+                frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
+                               defines=defines)
+            if filter_passes:
+                with frame.timings.stage("bp_filter"):
+                    tmp = frame.texture(size, 1)
+                    src, dst = out, tmp
+                    for _ in range(filter_passes):
+                        frame.dispatch("backprojection/filter.comp", samplers={"u_b": src, "u_info": info},
+                                       images={0: dst})
+                        src, dst = dst, src
+                    if src is not out:      # odd number of passes: the result is in tmp
+                        out.write(src.read())
+            # Share of backprojecting pixels and micro-occluders per such pixel (costs a readback).
+            if s.collect_stats or s.debug_passes:
+                self._gather_debug(frame, lc, info, rgb_tex, out)
+        finally:
+            for r in extra:
+                r.release()
+
+    def _gather_debug(self, frame, lc, info, rgb_tex, out):
+        a = frame.read(info)
+        cls, level, count = a[..., 0], a[..., 1], a[..., 2]
+        lit_px = cls >= 0
+        bp = cls == 2
+        lc.stats.update({"pixels": int(lit_px.sum()), "backprojected": int(bp.sum()),
+                 "share_backprojected": float(bp.sum() / max(lit_px.sum(), 1)),
+                 "share_lit": float((cls == 0).sum() / max(lit_px.sum(), 1)),
+                 "share_umbra": float((cls == 1).sum() / max(lit_px.sum(), 1)),
+                 "mean_count": float(count[bp].mean()) if bp.any() else 0.0,
+                 "std_count": float(count[bp].std()) if bp.any() else 0.0,
+                 "mean_level": float(level[bp].mean()) if bp.any() else 0.0})
+        if frame.settings.debug_passes:
+            colour = np.zeros(cls.shape + (3,), np.float32)
+            colour[cls == 0] = (0.0, 1.0, 0.0)
+            colour[cls == 1] = (1.0, 0.0, 0.0)
+            colour[bp] = (0.0, 0.0, 1.0)
+            lc.debug["BP Class"] = colour
+            lc.debug["BP Level"] = level[..., None].astype(np.float32)
+            lc.debug["BP Count"] = count[..., None].astype(np.float32)
+            if rgb_tex is not None:
+                lc.debug["BP Color Visibility"] = frame.read(rgb_tex, 3).copy()
+            else:                       # white light: every channel sees the scalar visibility
+                lc.debug["BP Color Visibility"] = np.repeat(frame.read(out, 1), 3, axis=-1)
