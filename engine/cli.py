@@ -193,6 +193,11 @@ def _int_list(text: str) -> list[int]:
 
 def cmd_bench(args) -> int:
     _import_bpy()
+    if args.study:
+        # The paper studies: each study module has its own options; pass them after `--`.
+        module = {"ssm": "ssm_study", "backprojection": "backprojection_study"}[args.study]
+        import importlib
+        return importlib.import_module(f"penumbra.engine.{module}").main(["--out", args.out, *args.study_args])
     if args.viewport:
         from . import viewport_bench
         scenes = _csv_list(args.scenes) or ["suzanne", "balls", "city"]
@@ -281,6 +286,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="interactive latency instead: first and refined frame after a camera move, an object "
                         "move and a light edit (default scenes suzanne, balls, city)")
     b.add_argument("--viewport-size", type=int, nargs=2, metavar=("W", "H"), default=[1280, 720])
+    b.add_argument("--study", choices=("ssm", "backprojection"),
+                   help="a paper's study instead: SSM's §4.2 curves (map size, light size, occluder position) "
+                        "or the bitmask paper's Table 2/3 columns; further options after `--`")
+    b.add_argument("study_args", nargs="*", help=argparse.SUPPRESS)
     b.add_argument("--out", required=True, help="folder for results.json/.csv/.md and pareto_<scene>.png")
     b.set_defaults(func=cmd_bench)
 

@@ -62,18 +62,17 @@ def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
                geometry: SceneGeometry | None = None) -> FrameResult:
     job.check()
     technique = get_technique(settings.technique)
-    warnings = list(snap.warnings)
     frame = Frame(worker, snap, settings, geometry)
     try:
         frame.progress = Progress(job, len(snap.lights))
         frame.bias_uniforms = {"u_bias": float(settings.bias), "u_normal_offset": float(settings.normal_offset)}
-        result = _render_lights(frame, technique, warnings)
+        result = _render_lights(frame, technique)
     finally:
         frame.release()
     return result
 
 
-def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
+def _render_lights(frame: Frame, technique) -> FrameResult:
     snap, settings, t = frame.snap, frame.settings, frame.timings
     size = (frame.width, frame.height)
     combined, unshadowed, irradiance_sum = frame.texture(size, 4), frame.texture(size, 4), frame.texture(size, 4)
@@ -93,9 +92,9 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
     stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
              "covered_pixels": int(covered.sum()), "technique": technique.identifier}
     if not snap.lights:
-        warnings.append(f"Scene '{snap.name}' has no lights: Combined is black and Visibility is 1.")
+        frame.warn(f"Scene '{snap.name}' has no lights: Combined is black and Visibility is 1.")
     if not has_casters and snap.lights:
-        warnings.append(f"Scene '{snap.name}' has no shadow casters: every light is unshadowed.")
+        frame.warn(f"Scene '{snap.name}' has no shadow casters: every light is unshadowed.")
 
     for index, light in enumerate(snap.lights):
         frame.progress.index = index
@@ -121,7 +120,7 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
             if view.clamped:
-                warnings.append(f"Light '{light.name}': visible receivers span more than "
+                frame.warn(f"Light '{light.name}': visible receivers span more than "
                                 f"{2 * np.degrees(lightview.MAX_HALF_ANGLE):.0f}° from the light; pixels outside "
                                 "its shadow map are treated as lit.")
             lc = LightContext(light, view, irradiance, receivers, casters,
@@ -143,7 +142,9 @@ def _render_lights(frame: Frame, technique, warnings: list) -> FrameResult:
 
     with t.stage("readback"):
         out = _finish(frame, combined, unshadowed, sums, irradiance_sum, covered, debug)
-    return FrameResult(out, dict(t), warnings, stats)
+    for name, value in frame.stats.items():
+        stats[name] = stats.get(name, 0) + value
+    return FrameResult(out, dict(t), frame.warnings, stats)
 
 
 def _finish(frame: Frame, combined, unshadowed, sums, irradiance_sum, covered, debug: dict) -> dict:

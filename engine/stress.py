@@ -370,7 +370,7 @@ def empty_mesh_bpy():
 class Case:
     name: str
     build: Callable[[], SceneSnapshot]
-    limit: str                      # oracle | hard | scaled | map | clean | dark | lit | finite
+    limit: str                      # oracle | hard | scaled | map | precision | clean | dark | lit | finite
     description: str
     tol: float = 0.0                # the limit on `error` (see the case list for why)
     class_tol: float = 0.02         # oracle cases: limit on class_err
@@ -421,6 +421,12 @@ CASES: list[Case] = [
     Case("light_in_box", light_in_box, "dark", "light inside a closed cube", tol=0.01),
     Case("camera_in_box", camera_in_box, "oracle", "camera inside a closed room", tol=0.06),
     Case("eight_lights", eight_lights, "oracle", "eight area lights", tol=0.06, oracle_samples=8),
+    # Atty et al. appendix A: half-float additive accumulation loses increments once the sum is large; the
+    # √M batching (and float32, the default) keep it. Only SSM reads these options; the rest ignore them.
+    Case("fp16_accumulation", scaled_base, "precision", "SSM half-float accumulation vs float32, 256² map",
+         tol=0.02, settings={"ssm_precision": "HALF", "ssm_map_size": 256}),
+    Case("fp16_batched", scaled_base, "precision", "SSM half-float with √M batching vs float32, 256² map",
+         tol=0.02, settings={"ssm_precision": "HALF_BATCHED", "ssm_map_size": 256}),
 ]
 CASE_BY_NAME = {c.name: c for c in CASES}
 
@@ -545,8 +551,9 @@ class Runner:
         self._snaps, self._oracles, self._renders = {}, {}, {}
 
     def settings(self, case: Case, technique: str, **more) -> RenderSettings:
-        return RenderSettings(**{**BASE_SETTINGS, **self.overrides, **case.settings, "technique": technique,
-                                 **more})
+        # with_() takes RenderSettings fields and technique options (e.g. ssm_map_size) alike.
+        return RenderSettings().with_(**{**BASE_SETTINGS, **self.overrides, **case.settings,
+                                         "technique": technique, **more})
 
     def snapshot(self, key: str, build: Callable) -> SceneSnapshot:
         if key not in self._snaps:
@@ -647,6 +654,13 @@ class Runner:
             vl = low.passes["Visibility"][..., 0]
             row.update(metric="vs_1024_shadow", error=_shadow_mae(vis, vl))
             notes.append(f"image mae {float(np.abs(vis - vl).mean()):.1e}")
+        elif case.limit == "precision":
+            # The same technique with the default float32 accumulation.
+            full, _ = self.render(case.name + "/f32", snap, self.settings(case, technique,
+                                                                        ssm_precision="FLOAT32"))
+            vf = full.passes["Visibility"][..., 0]
+            row.update(metric="vs_float32_shadow", error=_shadow_mae(vis, vf))
+            notes.append(f"image mae {float(np.abs(vis - vf).mean()):.1e}")
         elif case.limit == "dark":
             # Where the light would reach without the cage: ray-traced without it, on the pixels where the
             # camera sees the same surface (not the cage itself, whose outside the light cannot reach).

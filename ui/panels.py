@@ -88,6 +88,9 @@ class DATA_PT_penumbra_light(PenumbraPanel, bpy.types.Panel):
         layout.prop(light, "color")
         layout.prop(light, "energy")
         layout.prop(light, "use_shadow", text="Cast Shadow")
+        technique = context.scene.penumbra.technique
+        if technique == "SSM" and not (light.type == "AREA" and light.shape in {"SQUARE", "RECTANGLE"}):
+            layout.label(text="Soft Shadow Maps use this light's bounding rectangle", icon="INFO")
         if light.type == "AREA":
             layout.prop(light, "shape")
             col = layout.column(align=True)
@@ -120,6 +123,10 @@ class OBJECT_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         layout.use_property_split = True
         obj = context.object
         layout.prop(obj.penumbra, "role")
+        if context.scene.penumbra.technique == "SSM":
+            col = layout.column(align=True)
+            col.label(text="Soft Shadow Maps: casters shadow receivers;", icon="INFO")
+            col.label(text="an object never shadows itself (no self-shadowing).")
         col = layout.column(heading="Visibility")
         col.prop(obj, "visible_camera", text="Camera")
         col.prop(obj, "visible_shadow", text="Shadow")

@@ -53,10 +53,22 @@ class Frame:
         self._owned: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline
         self.bias_uniforms: dict = {}   # u_bias / u_normal_offset, shared by every technique
+        self.warnings: list[str] = list(snap.warnings)  # FrameResult.warnings
+        self.stats: dict = {}           # counters techniques add (FrameResult.stats)
         with self.timings.stage("upload"):
             self.geometry = geometry or self._own(SoupGeometry(ctx, snap))
         self._depth_targets: dict = {}
         self.gbuffer = self._render_gbuffer()
+
+    def warn(self, text: str) -> None:
+        """A warning for the user, once per frame."""
+        if text not in self.warnings:
+            self.warnings.append(text)
+
+    def count(self, **counters) -> None:
+        """Add to the frame's statistics counters."""
+        for name, value in counters.items():
+            self.stats[name] = self.stats.get(name, 0) + value
 
     def _own(self, obj):
         self._owned.append(obj)

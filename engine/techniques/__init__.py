@@ -3,8 +3,10 @@ from .hard import Hard
 from .pcf import Pcf
 from .pcss import Pcss
 from .averaged import AveragedMaps
+from .backprojection import Backprojection
+from .ssm import SoftShadowMaps
 
-TECHNIQUES = {t.identifier: t for t in (Hard(), Pcf(), Pcss(), AveragedMaps())}
+TECHNIQUES = {t.identifier: t for t in (Hard(), Pcf(), Pcss(), AveragedMaps(), SoftShadowMaps(), Backprojection())}
 
 
 def all_options() -> dict:

@@ -1,0 +1,62 @@
+// One occluder micro-patch and the fraction of the light it hides from a receiver (Atty et al. 2006).
+//
+// Frame: the light-view eye sits at the light's centre, the light lies in the plane depth = 0, and the
+// occluder map is axis-aligned with the light (§3.2). Window coordinates are tangents at unit depth
+// (perspective) or metres (ortho view of a sun). A micro-patch is the occluder-map texel [lo, hi] (window
+// units) moved to its depth zo, parallel to the light (§3.2, Fig. 4).
+//
+// §3.4, back-projection: seen from a receiver at window position t and depth zr, a patch point at window
+// position u projects onto the light plane at  x = (u - t) / s,  with the "spread"
+//     s = 1/zo - 1/zr     (perspective: x = zr·zo·(u - t)/(zr - zo), similar triangles through the patch)
+//     s = zr - zo         (sun: a direction tangent (u - t)/(zr - zo))
+// so the patch covers the axis-aligned rectangle [(lo - t)/s, (hi - t)/s] of the light, whose half extent
+// is h (metres, or tan(angle/2) for a sun). Normalising the light to [0, 1]² (the paper's MOV_SAT / SUB /
+// MUL trick) the hidden fraction is the product of the two clamped interval lengths.
+uniform vec4 u_light_window_ssm;    // x0, x1, y0, y1 of the SSM view (window units)
+uniform ivec2 u_ssm_size;           // occluder map = receiver map = soft shadow map texels
+uniform vec2 u_half;                // light half extent (bounding rectangle for round lights)
+uniform int u_ortho;
+uniform float u_bias_texels;        // relative depth gap: a patch occludes only if zo < zr·(1 − u_bias_texels)
+
+vec2 ssm_texel_tan() {
+    return (u_light_window_ssm.yw - u_light_window_ssm.xz) / vec2(u_ssm_size);
+}
+
+// Window position of a texel-space point.
+vec2 ssm_window(vec2 texel_pos) {
+    return u_light_window_ssm.xz + texel_pos * ssm_texel_tan();
+}
+
+bool depth_valid(float z) {
+    return z > 0.0 && z < 1.0e30;
+}
+
+// Lean form for the scatter's inner loop: d = (lo - t, hi - t) in window units, inv_zo = 1/zo, inv_2h =
+// 1/(2h), texel_world_1 = world size of a texel at unit depth (perspective) or its size (ortho).
+float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h, float texel_world_1) {
+    // No texel-sized bias is needed: a surface never occludes its own object (the ids differ), so only
+    // rasterisation rounding between two objects' maps has to be absorbed (relative 1e-5).
+    if (!(zr > 0.0 && zr < 1.0e30) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
+    float s = u_ortho == 1 ? zr - zo : inv_zo - 1.0 / zr;
+    vec2 k = inv_2h / s;
+    vec4 ab = clamp(vec4(0.5) + d * k.xyxy, 0.0, 1.0);
+    vec2 w = ab.zw - ab.xy;
+    return w.x * w.y;
+}
+
+// Fraction of the light hidden by the patch of texel `patch` at depth zo from a receiver at texel
+// centre `t_texel`, depth zr. 0 when the patch is not strictly in front of the receiver.
+float patch_occlusion(vec2 patch_texel, float zo, vec2 t_texel, float zr) {
+    if (!depth_valid(zr)) return 0.0;
+    vec2 tt = ssm_texel_tan();
+    if (zo >= zr * (1.0 - u_bias_texels)) return 0.0;
+    float s = u_ortho == 1 ? zr - zo : 1.0 / zo - 1.0 / zr;
+    if (!(s > 0.0)) return 0.0;
+    vec2 t = ssm_window(t_texel);
+    vec2 lo = ssm_window(patch_texel), hi = lo + tt;
+    // Light [-h, h] → [0, 1]:  a = 1/2 + (lo - t) / (2 h s).  Clamping keeps the infinities finite.
+    vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);
+    vec4 ab = clamp(vec4(0.5) + vec4(lo - t, hi - t) * k.xyxy, 0.0, 1.0);
+    vec2 w = ab.zw - ab.xy;
+    return w.x * w.y;
+}

@@ -1,0 +1,13 @@
+// Fixed-point atomic sums → float soft shadow map (compute scatter only).
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(r32ui, binding = 1) uniform readonly uimage2D u_sum_near;
+layout(r32ui, binding = 2) uniform readonly uimage2D u_sum_far;
+layout(rg32f, binding = 3) uniform writeonly image2D u_ssm;
+uniform ivec2 u_image_size;
+
+void main() {
+    ivec2 t = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(t, u_image_size))) return;
+    vec2 v = vec2(imageLoad(u_sum_near, t).r, imageLoad(u_sum_far, t).r) / 16777216.0;
+    imageStore(u_ssm, t, vec4(v, 0.0, 0.0));
+}

@@ -1,0 +1,35 @@
+// SSM scatter as a compute pass (the alternative to instanced quads): one invocation per micro-patch loops
+// over its penumbra extent and adds the hidden fraction, in fixed point (2^-24 units), with integer image
+// atomics — exact and order-independent, but serial per patch.
+#include "ssm/patch.glsl"
+layout(local_size_x = 64) in;
+struct Patch {
+    vec4 rect;
+    vec4 data;
+};
+layout(std430, binding = 0) readonly buffer Patches { Patch patches[]; };
+layout(r32ui, binding = 1) uniform uimage2D u_sum_near;
+layout(r32ui, binding = 2) uniform uimage2D u_sum_far;
+uniform sampler2D u_receivers;   // nearest receiver depth, object; farthest receiver depth, object
+uniform int u_count;
+const float FIXED = 16777216.0;
+
+void main() {
+    int index = int(gl_GlobalInvocationID.x);
+    if (index >= u_count) return;
+    Patch p = patches[index];
+    // Texel centres inside the rectangle, as the rasteriser would pick them.
+    ivec2 lo = ivec2(ceil(p.rect.xy - 0.5));
+    ivec2 hi = ivec2(ceil(p.rect.zw - 0.5));
+    for (int y = lo.y; y < hi.y; ++y) {
+        for (int x = lo.x; x < hi.x; ++x) {
+            ivec2 texel = ivec2(x, y);
+            vec2 centre = vec2(texel) + 0.5;
+            vec4 z = texelFetch(u_receivers, texel, 0);
+            float on = z.y == p.data.w ? 0.0 : patch_occlusion(p.data.xy, p.data.z, centre, z.x);
+            float of = z.w == p.data.w ? 0.0 : patch_occlusion(p.data.xy, p.data.z, centre, z.z);
+            if (on > 0.0) imageAtomicAdd(u_sum_near, texel, uint(on * FIXED + 0.5));
+            if (of > 0.0) imageAtomicAdd(u_sum_far, texel, uint(of * FIXED + 0.5));
+        }
+    }
+}

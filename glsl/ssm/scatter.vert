@@ -1,0 +1,23 @@
+// SSM scatter, rasterised (Atty et al. 2006 §3.3–3.4): one instanced quad per occluder micro-patch covering
+// its penumbra extent on the soft-shadow-map plane. The extent (an axis-aligned rectangle, the section of
+// the patch's penumbra pyramid, §3.3) is computed on the CPU together with the work estimate and read here
+// from a storage buffer; the quad is drawn with additive blending.
+#include "ssm/patch.glsl"
+struct Patch {
+    vec4 rect;      // penumbra extent in texels: x0, y0, x1, y1
+    vec4 data;      // patch texel i, j; depth zo; object index
+};
+layout(std430, binding = 0) readonly buffer Patches { Patch patches[]; };
+uniform int u_first;            // first patch of this draw (FP16 batching, appendix A)
+flat out vec4 v_lohi;
+flat out vec3 v_depth;
+
+void main() {
+    Patch p = patches[u_first + gl_InstanceID];
+    vec2 corner = vec2(gl_VertexID & 1, gl_VertexID >> 1);
+    vec2 pos = mix(p.rect.xy, p.rect.zw, corner);
+    vec2 lo = ssm_window(p.data.xy);
+    v_lohi = vec4(lo, lo + ssm_texel_tan());
+    v_depth = vec3(p.data.z, 1.0 / p.data.z, p.data.w);
+    gl_Position = vec4(pos / vec2(u_ssm_size) * 2.0 - 1.0, 0.0, 1.0);
+}
