@@ -103,7 +103,6 @@ def study_scene(name: str, size: int, map_size: int, repeats: int, samples: int,
 
 def build_times(sizes=(256, 512, 1024, 2048), repeats: int = 3, log=print) -> list[dict]:
     """Table 2: HSM and MSSM construction time per depth-map size (a suzanne map; timing stages)."""
-    from .techniques.backprojection import Backprojection  # noqa: F401  (registers the technique)
     import bpy
     from . import scenes
     from .scene import extract

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .snapshot import AREA, POINT, SPOT, SUN, Light
+from .gpu.programs import mat_uniform
 
 MAX_HALF_ANGLE = np.radians(80.0)   # a single perspective map cannot cover a hemisphere; beyond this it clamps
 
@@ -42,19 +43,14 @@ class LightView:
         x0, x1, y0, y1 = self.window
         tx, ty = self.texel_size()
         return {
-            "u_light_view": _mat(self.view),
-            "u_light_view_proj": _mat(self.view_proj),
+            "u_light_view": mat_uniform(self.view),
+            "u_light_view_proj": mat_uniform(self.view_proj),
             "u_light_window": (x0, x1, y0, y1),
             "u_light_ortho": int(self.is_ortho),
             "u_light_depth_range": (self.near, self.far),
             "u_map_size": (self.width, self.height),
             "u_texel_tan": max(tx, ty),
         }
-
-
-def _mat(m: np.ndarray) -> tuple:
-    """Column-major float tuple for a GLSL mat4 uniform."""
-    return tuple(np.asarray(m, dtype=np.float32).T.ravel())
 
 
 def light_frame(light: Light, target: np.ndarray | None = None) -> np.ndarray:

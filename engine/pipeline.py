@@ -7,7 +7,6 @@ structures the chosen technique declares are built.
 """
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 
 import numpy as np

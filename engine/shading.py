@@ -78,16 +78,14 @@ def _light_values(light: Light) -> dict:
 def irradiance_at(worker, light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """The shader's unoccluded irradiance at arbitrary points (N, 3) → (N, 3); runs on the GPU thread.
     Used to check glsl/shading/irradiance.glsl against engine/irradiance.py."""
-    from .gpu.programs import program
+    from .gpu.programs import program, set_uniforms
     ctx = worker.ctx
     n = len(points)
     pad = lambda a: np.c_[np.asarray(a, np.float32), np.zeros(n, np.float32)].tobytes()
     bufs = [ctx.buffer(pad(points)), ctx.buffer(pad(normals)), ctx.buffer(reserve=16 * max(n, 1))]
     try:
         prog = program(worker, compute="shading/irradiance_points.comp", defines=light_defines(light))
-        for name, value in {**light_uniforms(light), "u_count": n}.items():
-            if name in prog:
-                prog[name].value = value
+        set_uniforms(prog, {**light_uniforms(light), "u_count": n})
         for binding, buf in enumerate(bufs):
             buf.bind_to_storage_buffer(binding)
         prog.run((n + 63) // 64)

@@ -10,9 +10,9 @@ import pytest
 
 from penumbra.engine import pipeline
 from penumbra.engine.settings import RenderSettings
-from penumbra.engine.snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN
+from penumbra.engine.snapshot import DISK, ELLIPSE, POINT, SPOT, SUN
 from penumbra.engine.techniques import TECHNIQUES
-from penumbra.engine.techniques.backprojection import (ACCUMULATIONS, PRIMITIVES, REFINEMENTS, Backprojection,
+from penumbra.engine.techniques.backprojection import (ACCUMULATIONS, PRIMITIVES, REFINEMENTS,
                                                        sample_positions, valid_mask)
 from penumbra.tests.synthetic import floating_plane
 from penumbra.tests.test_pipeline import _ground_depth, exact_area_visibility, ground_points

@@ -10,7 +10,7 @@ import numpy as np
 from ..lightview import LightView
 from ..snapshot import SceneSnapshot
 from .geometry import SceneGeometry, SoupGeometry
-from .programs import program
+from .programs import bind_samplers, mat_uniform, program, set_uniforms
 
 NO_OCCLUDER = 3.0e38    # depth-map value where nothing was drawn
 
@@ -98,8 +98,8 @@ class Frame:
             ctx.disable(ctx.CULL_FACE)
             prog = program(self.worker, "common/gbuffer.vert", "common/gbuffer.frag")
             inv_view = np.linalg.inv(cam.view)
-            _set(prog, {
-                "u_view": _mat(cam.view), "u_view_proj": _mat(cam.projection @ cam.view),
+            set_uniforms(prog, {
+                "u_view": mat_uniform(cam.view), "u_view_proj": mat_uniform(cam.projection @ cam.view),
                 "u_camera_position": tuple(inv_view[:3, 3]), "u_camera_ortho": int(cam.is_ortho),
                 "u_camera_forward": tuple(-inv_view[:3, 2]),
             })
@@ -133,7 +133,7 @@ class Frame:
             ctx.enable(ctx.DEPTH_TEST)
             ctx.disable(ctx.CULL_FACE)
             prog = program(self.worker, "common/depth.vert", "common/depth.frag")
-            _set(prog, {"u_light_view": _mat(view.view), "u_light_view_proj": _mat(view.view_proj)})
+            set_uniforms(prog, {"u_light_view": mat_uniform(view.view), "u_light_view_proj": mat_uniform(view.view_proj)})
             self.geometry.render(ctx, prog, "caster", position_only=True)
         return tex
 
@@ -151,25 +151,11 @@ class Frame:
         texture (bound read-write). The G-buffer is always bound under its own names."""
         prog = program(self.worker, compute=compute, defines=defines)
         w, h = size or (self.width, self.height)
-        unit = 0
-        for name, tex in {**self.gbuffer, **(samplers or {})}.items():
-            if name in prog:
-                tex.use(location=unit)
-                prog[name].value = unit
-                unit += 1
+        bind_samplers(prog, {**self.gbuffer, **(samplers or {})})
         for binding, tex in (images or {}).items():
             tex.bind_to_image(binding, read=True, write=True)
-        _set(prog, {"u_image_size": (w, h), **(uniforms or {})})
+        set_uniforms(prog, {"u_image_size": (w, h), **(uniforms or {})})
         prog.run((w + 7) // 8, (h + 7) // 8, 1)
         self.ctx.memory_barrier()
 
 
-def _mat(m) -> tuple:
-    return tuple(np.asarray(m, dtype=np.float32).T.ravel())
-
-
-def _set(prog, values: dict) -> None:
-    """Set the uniforms the program actually uses (the compiler drops unused ones)."""
-    for name, value in values.items():
-        if name in prog:
-            prog[name].value = value

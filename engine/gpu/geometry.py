@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..snapshot import SceneSnapshot
+from .programs import set_uniforms
 
 VERTEX_FORMAT = "3f 3f 3f"
 ATTRIBUTES = ("in_position", "in_normal", "in_albedo")
@@ -55,10 +56,7 @@ class SceneGeometry:
         fmt = "3f 24x" if position_only else VERTEX_FORMAT
         attrs = ATTRIBUTES[:1] if position_only else ATTRIBUTES
         for d in self.draws(role, objects):
-            for name, value in (("u_model", d.model), ("u_normal_matrix", d.normal),
-                                ("u_mirrored", int(d.mirrored))):
-                if name in prog:
-                    prog[name].value = value
+            set_uniforms(prog, {"u_model": d.model, "u_normal_matrix": d.normal, "u_mirrored": int(d.mirrored)})
             if d.ibo is None:
                 vao = ctx.vertex_array(prog, [(d.vbo, fmt, *attrs)])
             else:

@@ -82,3 +82,28 @@ def program(worker, vertex: str | None = None, fragment: str | None = None, comp
                           f"{message}") from None
     worker.cache[key] = prog
     return prog
+
+
+def mat_uniform(m) -> tuple:
+    """A numpy matrix as the column-major float tuple a GLSL mat3/mat4 uniform takes."""
+    import numpy as np
+    return tuple(np.asarray(m, dtype=np.float32).T.ravel())
+
+
+def set_uniforms(prog, values: dict) -> None:
+    """Set the uniforms the program actually uses (the compiler drops unused ones, and that is fine)."""
+    for name, value in values.items():
+        if name in prog:
+            prog[name].value = value
+
+
+def bind_samplers(prog, samplers: dict, first_unit: int = 0) -> int:
+    """Bind name → texture to consecutive texture units for the samplers the program uses; returns the
+    next free unit."""
+    unit = first_unit
+    for name, tex in samplers.items():
+        if name in prog:
+            tex.use(location=unit)
+            prog[name].value = unit
+            unit += 1
+    return unit

@@ -28,8 +28,9 @@ import math
 import numpy as np
 
 from ..gpu.programs import program
-from ..snapshot import AREA, DISK, ELLIPSE, SUN
+from ..snapshot import AREA, DISK, ELLIPSE
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
+from ..gpu.programs import mat_uniform, set_uniforms
 
 NO_OCCLUDER = 3.0e38
 
@@ -125,16 +126,6 @@ def _mask_rows(valid: np.ndarray) -> list[int]:
     return rows
 
 
-def _set(prog, values: dict) -> None:
-    for name, value in values.items():
-        if name in prog:
-            prog[name].value = value
-
-
-def _mat(m) -> tuple:
-    return tuple(np.asarray(m, dtype=np.float32).T.ravel())
-
-
 def level_count(width: int, height: int) -> int:
     """Hierarchy levels so that the coarsest cell (2^(L−1) texels) covers the whole map."""
     return max(int(math.ceil(math.log2(max(width, height, 1)))), 0) + 1
@@ -151,7 +142,7 @@ def peel_layers(frame, view, first, layers: int) -> list:
         return out
     ctx = frame.ctx
     prog = program(frame.worker, "common/depth.vert", "backprojection/peel.frag")
-    _set(prog, {"u_light_view": _mat(view.view), "u_light_view_proj": _mat(view.view_proj),
+    set_uniforms(prog, {"u_light_view": mat_uniform(view.view), "u_light_view_proj": mat_uniform(view.view_proj),
                 "u_peel_eps": PEEL_EPS})
     for _ in range(layers - 1):
         tex, fbo = frame.new_depth_target(view)
@@ -175,13 +166,13 @@ def build_hsm(frame, depth, width: int, height: int):
     tex.filter = (0x2600, 0x2600)
     prog = program(frame.worker, compute="backprojection/hsm.comp")
     depth.use(location=0)
-    _set(prog, {"u_depth": 0, "u_map_size": (width, height)})
+    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
     for l_ in range(levels):
         size = (max(pw >> l_, 1), max(ph >> l_, 1))
         tex.bind_to_image(0, read=False, write=True, level=l_)
         if l_ > 0:
             tex.bind_to_image(1, read=True, write=False, level=l_ - 1)
-        _set(prog, {"u_first": int(l_ == 0), "u_dst_size": size})
+        set_uniforms(prog, {"u_first": int(l_ == 0), "u_dst_size": size})
         prog.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
         frame.ctx.memory_barrier()
     return tex, levels
@@ -202,11 +193,11 @@ def build_mssm(frame, depth, width: int, height: int):
     tex.filter = (0x2600, 0x2600)
     prog = program(frame.worker, compute="backprojection/mssm.comp")
     depth.use(location=0)
-    _set(prog, {"u_depth": 0, "u_map_size": (width, height)})
+    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
     tex.bind_to_image(0, read=True, write=True)
     tex.bind_to_image(1, read=True, write=True)
     for l_ in range(levels):
-        _set(prog, {"u_level": l_})
+        set_uniforms(prog, {"u_level": l_})
         prog.run((width + 7) // 8, (height + 7) // 8, 1)
         frame.ctx.memory_barrier()
     return tex, levels

@@ -47,6 +47,7 @@ from ..gpu.frame import NO_OCCLUDER
 from ..gpu.programs import program
 from ..lightview import LightView
 from .base import Option, Technique, light_shape_uniforms
+from ..gpu.programs import bind_samplers, mat_uniform, set_uniforms
 
 CASTER_ROLES = ("CASTER", "BOTH")
 RECEIVER_ROLES = ("RECEIVER", "BOTH")
@@ -199,7 +200,7 @@ class SoftShadowMaps(Technique):
 
     # ------------------------------------------------------------------------------------------------------
     def visibility(self, frame, lc, out):
-        s, light, ctx = frame.settings, lc.light, frame.ctx
+        s, light = frame.settings, lc.light
         ones = np.ones((frame.height, frame.width), np.float32).tobytes()
         for text in role_warnings(frame.snap):
             frame.warn(text)
@@ -278,7 +279,7 @@ class SoftShadowMaps(Technique):
         linear depth from the light centre. Empty texels: NO_OCCLUDER (nearest) or 0 (farthest)."""
         ctx = frame.ctx
         prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
-        _set(prog, {"u_light_view": _mat(view.view), "u_light_view_proj": _mat(view.view_proj)})
+        set_uniforms(prog, {"u_light_view": mat_uniform(view.view), "u_light_view_proj": mat_uniform(view.view_proj)})
         jobs = [("front", "caster", casters, False, False), ("near", "receiver", receivers, False, False),
                 ("far", "receiver", receivers, True, False)]
         if two_pass:
@@ -299,9 +300,9 @@ class SoftShadowMaps(Technique):
                 else:
                     fbo.clear(NO_OCCLUDER, -1.0, 0.0, 0.0, depth=1.0)
                     ctx.depth_func = "<"
-                _set(prog, {"u_back_only": int(back_only)})
+                set_uniforms(prog, {"u_back_only": int(back_only)})
                 for index in objects:         # one draw per object, tagged with its index
-                    _set(prog, {"u_object": float(index)})
+                    set_uniforms(prog, {"u_object": float(index)})
                     _draw(frame, prog, role, (index,))
                 out[name] = tex
         finally:
@@ -325,7 +326,7 @@ class SoftShadowMaps(Technique):
         depth = frame._own(ctx.depth_texture(size))
         fbo = frame._own(ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
         prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
-        _set(prog, {"u_light_view": _mat(cam.view), "u_light_view_proj": _mat(cam.projection @ cam.view),
+        set_uniforms(prog, {"u_light_view": mat_uniform(cam.view), "u_light_view_proj": mat_uniform(cam.projection @ cam.view),
                     "u_back_only": 0})
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -334,7 +335,7 @@ class SoftShadowMaps(Technique):
         ctx.disable(ctx.BLEND)
         ctx.depth_func = "<"
         for flag, objects in ((1.0, receivers), (0.0, others)):
-            _set(prog, {"u_object": flag})
+            set_uniforms(prog, {"u_object": flag})
             _draw(frame, prog, "receiver", objects)
         return tex
 
@@ -361,22 +362,22 @@ class SoftShadowMaps(Technique):
                 t.bind_to_image(binding, read=True, write=True)
                 sums.append(t)
             prog = program(frame.worker, compute="ssm/scatter.comp")
-            _bind_samplers(prog, {"u_receivers": maps["receivers"]})
-            _set(prog, {**uniforms, "u_count": m})
+            bind_samplers(prog, {"u_receivers": maps["receivers"]})
+            set_uniforms(prog, {**uniforms, "u_count": m})
             prog.run((m + 63) // 64, 1, 1)
             ctx.memory_barrier()
             ssm = frame.texture(size, 2)
             ssm.bind_to_image(3, read=False, write=True)
             resolve = program(frame.worker, compute="ssm/resolve.comp")
-            _set(resolve, {"u_image_size": size})
+            set_uniforms(resolve, {"u_image_size": size})
             resolve.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
             ctx.memory_barrier()
             return ssm
 
         dtype = "f4" if precision == "FLOAT32" else "f2"
         prog = program(frame.worker, "ssm/scatter.vert", "ssm/scatter.frag")
-        _bind_samplers(prog, {"u_receivers": maps["receivers"]})
-        _set(prog, uniforms)
+        bind_samplers(prog, {"u_receivers": maps["receivers"]})
+        set_uniforms(prog, uniforms)
         vao = frame._own(ctx.vertex_array(prog, []))
         ssm = frame.texture(size, 2, dtype)
         fbo = frame._own(ctx.framebuffer(color_attachments=[ssm]))
@@ -389,7 +390,7 @@ class SoftShadowMaps(Technique):
         try:
             if precision != "HALF_BATCHED":
                 fbo.use()
-                _set(prog, {"u_first": 0})
+                set_uniforms(prog, {"u_first": 0})
                 vao.render(ctx.TRIANGLE_STRIP, vertices=4, instances=m)
             else:
                 # Appendix A: split the M micro-patches into ⌊√M⌋ batches, sum each in FP16, add the batch
@@ -406,10 +407,10 @@ class SoftShadowMaps(Technique):
                     batch_fbo.use()
                     batch_fbo.clear(0.0, 0.0, 0.0, 0.0)
                     prog["u_first"].value = int(first)
-                    _bind_samplers(prog, {"u_receivers": maps["receivers"]})
+                    bind_samplers(prog, {"u_receivers": maps["receivers"]})
                     vao.render(ctx.TRIANGLE_STRIP, vertices=4, instances=int(last - first))
                     fbo.use()
-                    _bind_samplers(add, {"u_batch": batch})
+                    bind_samplers(add, {"u_batch": batch})
                     add_vao.render(ctx.TRIANGLES, vertices=3)
         finally:
             ctx.disable(ctx.BLEND)
@@ -423,18 +424,3 @@ def _draw(frame, prog, role: str, objects) -> None:
     frame.geometry.render(frame.ctx, prog, role, frozenset(int(i) for i in objects), position_only=True)
 
 
-def _bind_samplers(prog, samplers: dict) -> None:
-    for unit, (name, tex) in enumerate(samplers.items()):
-        if name in prog:
-            tex.use(location=unit)
-            prog[name].value = unit
-
-
-def _mat(m) -> tuple:
-    return tuple(np.asarray(m, dtype=np.float32).T.ravel())
-
-
-def _set(prog, values: dict) -> None:
-    for name, value in values.items():
-        if name in prog:
-            prog[name].value = value
