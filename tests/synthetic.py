@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from penumbra.engine.snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapshot
+from penumbra.engine.stress import look_at, perspective
 
 
 def quad(center, half, normal_up=True):
@@ -13,28 +14,6 @@ def quad(center, half, normal_up=True):
     c, d = np.array([cx + half, cy + half, cz]), np.array([cx - half, cy + half, cz])
     tris = np.array([[a, b, c], [a, c, d]], np.float32)
     return tris if normal_up else tris[:, ::-1]
-
-
-def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    eye, target, up = (np.asarray(v, float) for v in (eye, target, up))
-    f = target - eye
-    f /= np.linalg.norm(f)
-    x = np.cross(f, up)
-    if np.linalg.norm(x) < 1e-9:
-        x = np.cross(f, [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(x, f)
-    m = np.eye(4)
-    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, -f, eye
-    return m
-
-
-def perspective(fov_y: float, aspect: float, near: float, far: float) -> np.ndarray:
-    f = 1.0 / np.tan(fov_y / 2.0)
-    m = np.zeros((4, 4))
-    m[0, 0], m[1, 1] = f / aspect, f
-    m[2, 2], m[2, 3], m[3, 2] = -(far + near) / (far - near), -2 * far * near / (far - near), -1.0
-    return m
 
 
 def floating_plane(size=128, light_size=1.0, occluder_height=1.0, light_height=3.0, ground_half=4.0):
