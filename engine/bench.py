@@ -51,7 +51,7 @@ PEERS = ("cycles", "eevee")
 CONFIG_BUDGET_S = 20.0              # timed frames per configuration stop at about this much time (≥ 1 frame)
 PEER_BUDGET_S = 5.0                 # Cycles pairs per sample count: repeated (≤ repeats) within this much time
 
-METRIC_KEYS = ("mae_shadow", "mae", "rmse", "max_abs", "pixel_match", "n_mask", "n_shadow")
+METRIC_KEYS = ("mae_shadow", "mae", "rmse", "max_abs", "pixel_match", "ssim_shaded", "n_mask", "n_shadow")
 STAGES = ("upload", "gbuffer", "readback", "irradiance", "light_view", "shadow_map", "visibility", "accumulate")
 
 MAP_SIZE_SWEEP = [{"shadow_map_size": n} for n in (256, 512, 1024, 2048)]
@@ -468,7 +468,9 @@ def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, pee
                 entry["rows"].append({
                     "kind": "ours", "technique": tid, "config": label, "changes": changes,
                     "settings": asdict(settings), "repeats": len(timing["times_ms"]), **timing,
-                    "metrics": metrics.compare(v, ref.visibility, ref.mask),
+                    "metrics": {**metrics.compare(v, ref.visibility, ref.mask),
+                                "ssim_shaded": metrics.ssim_shaded(result.passes["Combined"],
+                                                                   result.passes["Unshadowed"], ref.visibility)},
                     "stats": result.stats, "warnings": sorted(set(result.warnings))})
 
         for peer in peers:
@@ -643,7 +645,7 @@ def results_markdown(results: dict) -> str:
     if results.get("summary"):
         lines += ["## Summary", "", "```", summary_table(results["summary"]), "```", ""]
     head = ["technique", "config", "time ms (median)", "first-frame ms", "mae_shadow", "rmse", "max_abs",
-            "pixel_match"]
+            "pixel_match", "SSIM (shaded)"]
     for e in results["scenes"]:
         f, ref = e["noise_floor"], e["reference"]
         lines += [f"## {e['scene']} ({e['resolution'][0]}×{e['resolution'][1]}, {e['triangles']} triangles, "
@@ -653,13 +655,13 @@ def results_markdown(results: dict) -> str:
                   f"{a['reference_seeds'][0]} vs {a['reference_seeds'][1]}): mae_shadow "
                   f"{_num(f.get('mae_shadow'), '.4f')}, rmse {_num(f.get('rmse'), '.4f')}, max_abs "
                   f"{_num(f.get('max_abs'), '.4f')}, pixel_match {_num(f.get('pixel_match'), '.4f')}.", "",
-                  "| " + " | ".join(head) + " |", "|" + "|".join(["---", "---"] + ["---:"] * 6) + "|"]
+                  "| " + " | ".join(head) + " |", "|" + "|".join(["---", "---"] + ["---:"] * 7) + "|"]
         for r in e["rows"]:
             m = r["metrics"]
             lines.append("| " + " | ".join([
                 r["technique"], r["config"], _num(r["time_ms"], ".1f"), _num(r.get("first_frame_ms"), ".1f"),
                 _num(m.get("mae_shadow"), ".4f"), _num(m.get("rmse"), ".4f"), _num(m.get("max_abs"), ".4f"),
-                _num(m.get("pixel_match"), ".4f")]) + " |")
+                _num(m.get("pixel_match"), ".4f"), _num(m.get("ssim_shaded"), ".4f")]) + " |")
         lines.append("")
     lines.append(f"Total wall time: {results.get('wall_seconds', float('nan')):.0f} s")
     return "\n".join(lines) + "\n"

@@ -30,7 +30,8 @@ class Comparison:
         m, n = self.metrics, self.noise_floor or {}
         floor = f" (Cycles noise floor {n.get('mae_shadow', float('nan')):.4f})" if n else ""
         return (f"{self.scene} {self.technique}: mae_shadow {m['mae_shadow']:.4f}{floor}, rmse {m['rmse']:.4f}, "
-                f"max_abs {m['max_abs']:.3f}, pixel_match {m['pixel_match']:.4f} over {m['n_shadow']} shadow px; "
+                f"max_abs {m['max_abs']:.3f}, pixel_match {m['pixel_match']:.4f} over {m['n_shadow']} shadow px, "
+                f"SSIM (shaded) {m['ssim_shaded']:.4f}; "
                 f"ours {self.ours_ms:.1f} ms vs Cycles {self.cycles_seconds:.2f} s "
                 f"({self.reference_samples} spp); Unshadowed rel. error {self.unshadowed_rel_error:.4f}")
 
@@ -54,6 +55,7 @@ def compare(scene, settings: RenderSettings, *, samples: int = 256, with_noise_f
                                   height=snap.camera.height) if with_noise_floor else None
     v = result.passes["Visibility"][..., 0]
     m = metrics.compare(v, ref.visibility, ref.mask)
+    m["ssim_shaded"] = metrics.ssim_shaded(result.passes["Combined"], result.passes["Unshadowed"], ref.visibility)
     cmp = Comparison(snap.name, settings.technique, m, floor, float(np.median(ours_ms)), ref.seconds, samples,
                      unshadowed_error(result.passes["Irradiance"] / np.pi, ref.unshadowed, ref.mask),
                      result.warnings)

@@ -97,6 +97,15 @@ def compare(v, v_ref, mask=None, *, shadow_level: float = SHADOW_LEVEL) -> dict:
     return out
 
 
+def ssim_shaded(combined: np.ndarray, unshadowed: np.ndarray, v_ref: np.ndarray) -> float:
+    """Perceptual check on the image a person sees: SSIM between our Combined pass and the same shading
+    with the reference visibility instead of ours (Cycles' V_ref applied to our Unshadowed pass)."""
+    target = unshadowed[..., :3] * np.asarray(v_ref, np.float32)[..., None]
+    ours = combined[..., :3]
+    peak = float(max(np.percentile(luminance(target), 99.5), 1e-6))
+    return float(ssim(np.clip(ours / peak, 0, 1), np.clip(target / peak, 0, 1)))
+
+
 def luminance(img) -> np.ndarray:
     """Rec. 709 luminance of a linear RGB(A) image (H, W, 3|4); (H, W) images pass through."""
     img = np.asarray(img, dtype=np.float64)

@@ -146,3 +146,13 @@ def test_flip_optional():
     b[8:16, 8:16] = 0.0
     assert M.flip(a, b) > 0.01
     assert M.flip(a, b, hdr=False) > 0.01
+
+
+def test_ssim_shaded_is_one_for_the_same_visibility_and_drops_with_a_wrong_one():
+    from penumbra.engine.metrics import ssim_shaded
+    rng = np.random.default_rng(0)
+    unshadowed = np.full((40, 40, 3), 0.6, np.float32) + rng.random((40, 40, 3), dtype=np.float32) * 0.01
+    v = np.ones((40, 40), np.float32)
+    v[10:30, 10:30] = 0.2
+    assert ssim_shaded(unshadowed * v[..., None], unshadowed, v) > 0.999
+    assert ssim_shaded(unshadowed, unshadowed, v) < 0.9
