@@ -74,8 +74,7 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
         render_result = self.begin_result(0, 0, width, height)
         layer = render_result.layers[0]
         for name, array in result.passes.items():
-            target = layer.passes.find_by_name(name, "") if hasattr(layer.passes, "find_by_name") else None
-            target = target or layer.passes.get(name)
+            target = layer.passes.find_by_name(name, "")     # "": the render's only view
             if target is not None:
                 target.rect.foreach_set(array.reshape(-1))
         self.end_result(render_result)

@@ -440,7 +440,7 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
             lights.append(make_light(ob.name, ob.data, _matrix_np(inst.matrix_world), warn_once))
 
     geometry = _assemble(groups, mesh_arrays, albedo_tables)
-    geometry = _sanitize(geometry, objects, warnings)
+    geometry = sanitize(geometry, objects, warnings)
 
     if width is None or height is None:
         w, h = render_size(scene)
@@ -519,7 +519,7 @@ def _assemble(groups, mesh_arrays, albedo_tables) -> dict:
                 object_id=np.concatenate(oid_parts), albedo=np.concatenate(alb_parts))
 
 
-def _sanitize(geometry: dict, objects: list[ObjectInfo], warnings: list[str]) -> dict:
+def sanitize(geometry: dict, objects: list[ObjectInfo], warnings: list[str]) -> dict:
     """Drop non-finite and zero-area triangles (one warning per object and cause), repair unusable normals.
 
     Zero area means below REL_AREA_EPS × (scene bounding-box diagonal)², so millimetre-scale scenes keep

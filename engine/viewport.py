@@ -142,19 +142,14 @@ def _read_piece(ob, extraction, warnings) -> MeshPiece | None:
     colors = [extraction.material_albedo(slot.material, warnings.append) for slot in ob.material_slots]
     table = np.array(colors or [extraction.GREY], np.float32).reshape(-1, 3)
     albedo = table[np.clip(arrays.mat, 0, len(table) - 1)]
-    pos = arrays.pos
-    e = np.cross(pos[:, 1] - pos[:, 0], pos[:, 2] - pos[:, 0])
-    area2 = np.einsum("ij,ij->i", e, e)
-    flat = pos.reshape(-1, 3)
-    good_pts = flat[np.isfinite(flat).all(axis=1)]
-    diag2 = float(np.square(good_pts.max(axis=0) - good_pts.min(axis=0)).sum()) if len(good_pts) else 0.0
-    keep = np.isfinite(area2) & (area2 > 4.0 * (extraction.REL_AREA_EPS * diag2) ** 2)
-    if not keep.all():
-        warnings.append(f"object '{ob.name}': dropped {int((~keep).sum())} NaN/Inf or zero-area triangle(s)")
-    if not keep.any():
+    # The final render's clean-up, in object space: NaN/Inf and zero-area triangles dropped with a warning.
+    geometry = extraction.sanitize(dict(positions=arrays.pos, normals=arrays.nrm.copy(), albedo=albedo,
+                                         object_id=np.zeros(len(albedo), np.int32)),
+                                    [ObjectInfo(ob.name)], warnings)
+    if geometry["positions"].shape[0] == 0:
         return None
-    return MeshPiece(np.ascontiguousarray(pos[keep]), np.ascontiguousarray(arrays.nrm[keep]),
-                     np.ascontiguousarray(albedo[keep]))
+    return MeshPiece(np.ascontiguousarray(geometry["positions"]), np.ascontiguousarray(geometry["normals"]),
+                     np.ascontiguousarray(geometry["albedo"]))
 
 
 # ---------------------------------------------------------------------------------------------------------
