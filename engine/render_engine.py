@@ -28,6 +28,7 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._viewport = None               # engine.viewport.ViewportSession, created on first view_update
+        self._texture = None                # (frame, pass name, gpu.types.GPUTexture) on screen
 
     def __del__(self):
         viewport = getattr(self, "_viewport", None)
@@ -111,9 +112,14 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return
+        if session.error:
+            self.report({"ERROR"}, f"Penumbra viewport: {session.error}")
+            session.error = None
         frame = session.latest
         if frame is not None:
-            _draw_frame(self, scene, frame, props.viewport_pass, region.width, region.height)
+            if self._texture is None or self._texture[:2] != (frame, props.viewport_pass):
+                self._texture = (frame, props.viewport_pass, _frame_texture(frame, props.viewport_pass))
+            _draw_texture(self, scene, self._texture[2], region.width, region.height)
             self.update_stats("", f"Penumbra {'coarse' if frame.coarse else 'refined'} frame "
                                   f"{frame.ms:.0f} ms")
         if session.busy():
@@ -124,17 +130,22 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
         self.error_set(message)
 
 
-def _draw_frame(engine, scene, frame, pass_name, width, height):
-    """Upload the frame as a texture (created here, inside view_draw, as the gpu module requires) and draw it
-    through Blender's display-space shader, so colour management matches Cycles' viewport."""
+def _frame_texture(frame, pass_name):
+    """The frame's pass as a GPU texture. Called from view_draw only (the gpu module refuses to work at
+    import, register or render time), once per new frame."""
     import gpu
     import numpy as np
-    from gpu_extras.presets import draw_texture_2d
     data = frame.passes.get(pass_name, frame.passes["Combined"])
     rgba = np.ones((frame.height, frame.width, 4), np.float32)
     rgba[..., :3] = data[..., :3] if data.shape[-1] >= 3 else data[..., :1]
-    texture = gpu.types.GPUTexture((frame.width, frame.height), format="RGBA16F",
-                                   data=gpu.types.Buffer("FLOAT", rgba.size, rgba.ravel()))
+    return gpu.types.GPUTexture((frame.width, frame.height), format="RGBA16F",
+                                data=gpu.types.Buffer("FLOAT", rgba.size, rgba.ravel()))
+
+
+def _draw_texture(engine, scene, texture, width, height):
+    """Draw through Blender's display-space shader, so colour management matches Cycles' viewport."""
+    import gpu
+    from gpu_extras.presets import draw_texture_2d
     gpu.state.blend_set("ALPHA_PREMULT")
     engine.bind_display_space_shader(scene)
     draw_texture_2d(texture, (0, 0), width, height)

@@ -254,15 +254,30 @@ class ViewportSession:
         self._jobs: list = []
         self.latest: ViewportFrame | None = None
         self.cancelled = 0          # frames dropped because a newer request came (tests read it)
+        self.error: str | None = None
 
     # -- scene ---------------------------------------------------------------------------------------------
     def sync(self, depsgraph, updates=None) -> set:
-        """Read what changed (main thread), then hand the new meshes to the GPU thread."""
+        """Read what changed (main thread), then hand the new meshes to the GPU thread without waiting:
+        frames of the old scene are cancelled, and the GPU thread applies the upload before any newer frame
+        (its queue is first in, first out). An upload error is kept in `error` for the next draw."""
         state, changed = self.scene.sync(depsgraph, updates)
         self.state = state
-        self.worker.submit(self._apply, state).result()
+        self._cancel_all()
+        future = self.worker.submit(self._apply, state)
+        future.add_done_callback(self._keep_error)
         self._last_key = None        # the scene changed: the next request renders even for the same view
         return changed
+
+    def _keep_error(self, future) -> None:
+        if future.exception() is not None:
+            self.error = str(future.exception())
+
+    def _cancel_all(self) -> None:
+        with self._lock:
+            for job in self._jobs:
+                job.stop_requested.set()
+            self._jobs = []
 
     def _apply(self, worker, state):
         if self._geometry is None:
@@ -271,6 +286,8 @@ class ViewportSession:
 
     @property
     def uploads(self) -> dict:
+        """Times each mesh was uploaded (after the GPU thread has applied every sync so far)."""
+        self.worker.submit(lambda worker: None).result()
         return dict(self._geometry.uploads) if self._geometry else {}
 
     # -- frames --------------------------------------------------------------------------------------------
@@ -284,12 +301,10 @@ class ViewportSession:
             return False
         settings.validate()
         self._last_key = key
+        self._cancel_all()
         with self._lock:
             self._request += 1
             request = self._request
-            for job in self._jobs:
-                job.stop_requested.set()
-            self._jobs = []
         plans = []
         if progressive:
             w, h = max(1, int(camera.width * coarse_scale)), max(1, int(camera.height * coarse_scale))
@@ -305,7 +320,7 @@ class ViewportSession:
     def _render(self, worker, job, request, camera, settings, coarse):
         import time
         from . import pipeline
-        if job.stop_requested.is_set():
+        if job.stop_requested.is_set() or self._geometry is None:
             self.cancelled += 1
             return None
         snap = SceneSnapshot(objects=self.state.objects, lights=self.state.lights, camera=camera,
@@ -339,9 +354,7 @@ class ViewportSession:
 
     def free(self) -> None:
         """Release GPU buffers (RenderEngine.__del__ / engine freed)."""
-        with self._lock:
-            for job in self._jobs:
-                job.stop_requested.set()
+        self._cancel_all()
         geometry, self._geometry = self._geometry, None
         if geometry is not None:
             self.worker.submit(lambda worker: geometry.release())
