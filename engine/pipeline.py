@@ -107,8 +107,9 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         if not lit.any():
             stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
             continue
-        pts = position[lit][:, :3]
-        receivers = (pts.min(axis=0).astype(np.float64), pts.max(axis=0).astype(np.float64))
+        xyz, where = position[..., :3], lit[..., None]     # bounds without copying the lit pixels out
+        receivers = (xyz.min(axis=(0, 1), where=where, initial=np.inf).astype(np.float64),
+                     xyz.max(axis=(0, 1), where=where, initial=-np.inf).astype(np.float64))
         casters = None
         if light.casts_shadow and has_casters:
             casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers)
