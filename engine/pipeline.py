@@ -96,6 +96,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         frame.warn(f"Scene '{snap.name}' has no shadow casters: every light is unshadowed.")
 
     for index, light in enumerate(snap.lights):
+        lc = None
         frame.progress.index = index
         frame.progress.step(0.0, f"{light.name}: irradiance")
         frame.progress.check()
@@ -135,8 +136,10 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             for name, array in lc.debug.items():    # several lights: keep the per-pixel maximum
                 debug[name] = array if name not in debug else np.maximum(debug[name], array)
         with t.stage("accumulate"):
-            frame.dispatch("shading/accumulate.comp", samplers={"g_irradiance": irradiance,
-                           "u_visibility": visibility},
+            rgb = lc.visibility_rgb if lc is not None else None
+            frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
+                           samplers={"g_irradiance": irradiance, "u_visibility": visibility,
+                                     "u_visibility_rgb": rgb if rgb is not None else visibility},
                            images={0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum})
         frame.progress.step(1.0, f"{light.name}: done")
 

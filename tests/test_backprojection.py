@@ -252,6 +252,12 @@ def test_textured_light_gives_coloured_visibility(plane):
     lum_r, lum_g = 0.2126, 0.7152
     mix = (lum_r * rgb[..., 0] + lum_g * rgb[..., 1]) / (lum_r + lum_g)
     assert np.abs(r.passes["Visibility"][..., 0] - mix)[sel].mean() < 0.01
+    # Combined shades each colour channel with that channel's visibility.
+    unshadowed, combined = r.passes["Unshadowed"], r.passes["Combined"]
+    for c in (0, 1):
+        lit = sel & (unshadowed[..., c] > 1e-6)
+        ratio = combined[..., c][lit] / unshadowed[..., c][lit]
+        assert np.abs(ratio - rgb[..., c][lit]).max() < 1e-4
 
 
 def test_debug_passes_are_present_and_sensible(plane):

@@ -300,6 +300,7 @@ class Backprojection(Technique):
                 uniforms["u_color_total"] = tuple(float(v) for v in total)
                 rgb_tex = frame.texture(size, 4)
                 images[2] = rgb_tex
+                lc.visibility_rgb = rgb_tex         # Combined shades each channel with its own visibility
             defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
                        "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
                        "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes)}

@@ -24,6 +24,9 @@ class LightContext:
     casters: tuple | None               # world AABB of the casters, None when there are none
     uniforms: dict                      # light-view uniforms plus bias settings
     structures: dict = field(default_factory=dict)
+    # A coloured visibility (RGBA32F texture, rgb per channel) for a textured light: Combined then uses it
+    # channel by channel, while `out` keeps the scalar (luminance-weighted) visibility.
+    visibility_rgb: object | None = None
     # Statistics the technique reports for this light (with settings.collect_stats or debug passes on); the
     # pipeline lists them in FrameResult.stats["per_light"].
     stats: dict = field(default_factory=dict)
