@@ -221,11 +221,15 @@ class ViewportGeometry(SceneGeometry):
 # ---------------------------------------------------------------------------------------------------------
 
 def coarse_settings(settings: RenderSettings, map_size: int) -> RenderSettings:
-    """The quick first frame after a change: a small map and the technique's cheapest sampling."""
-    return settings.with_(shadow_map_size=min(map_size, settings.shadow_map_size),
-                          reference_samples=min(8, settings.reference_samples),
-                          pcss_blocker_samples=min(16, settings.pcss_blocker_samples),
-                          pcss_filter_samples=min(16, settings.pcss_filter_samples))
+    """The quick first frame after a change: a small map and the technique's own cheap mode
+    (Technique.coarse)."""
+    from .techniques import get
+    changes = {"shadow_map_size": min(map_size, settings.shadow_map_size)}
+    for name, value in get(settings.technique).coarse.items():
+        current = getattr(settings, name) if name in settings.field_names() else settings.option(name)
+        numeric = isinstance(value, (int, float)) and not isinstance(value, bool)
+        changes[name] = min(value, current) if numeric else value      # numbers are caps, never raised
+    return settings.with_(**changes)
 
 
 @dataclass

@@ -117,3 +117,17 @@ def test_progressive_then_full_and_stale_work_cancelled(balls):
     assert session.cancelled >= 1
     assert session.request(replace(snap.camera, view=moved), settings) is False   # same view: no new work
     session.free()
+
+
+def test_coarse_frame_uses_each_techniques_cheap_mode_and_never_raises_quality():
+    from penumbra.engine.techniques import TECHNIQUES
+    from penumbra.engine.viewport import coarse_settings
+    for identifier, technique in TECHNIQUES.items():
+        full = RenderSettings(technique=identifier, shadow_map_size=2048)
+        coarse = coarse_settings(full, 256)
+        assert coarse.shadow_map_size == 256
+        for name, value in technique.coarse.items():
+            got = getattr(coarse, name) if name in RenderSettings.field_names() else coarse.option(name)
+            assert got == value, (identifier, name)
+    low = coarse_settings(RenderSettings(technique="REFERENCE", reference_samples=2, shadow_map_size=128), 256)
+    assert low.reference_samples == 2 and low.shadow_map_size == 128

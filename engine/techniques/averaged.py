@@ -64,6 +64,7 @@ class AveragedMaps(Technique):
     label = "Averaged shadow maps"
     description = "Average of N hard shadow maps from points on the light: slow ground truth"
     needs = ()
+    coarse = {"reference_samples": 8}
 
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light

@@ -230,6 +230,7 @@ class Backprojection(Technique):
                "Post-filter passes of the bitmask visibility driven by the area values (§3.1)", min=0, max=16),
         Option("bp_layers", 1, "Depth layers", "Depth-peeled layers from the light centre (§3.2)", min=1, max=4),
     )
+    coarse = {"bp_budget": 8}
     debug_passes = (
         ("BP Class", 3, "RGB", "COLOR"),            # green: proven lit, red: umbra, blue: backprojected
         ("BP Level", 1, "X", "VALUE"),              # hierarchy level the micro-occluders came from

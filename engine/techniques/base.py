@@ -69,6 +69,8 @@ class Technique:
     needs: tuple[str, ...] = (DEPTH_MAP,)
     options: tuple[Option, ...] = ()    # the technique's own settings
     debug_passes: tuple = ()            # (name, channels, channel ids, Blender type) written with debug on
+    # The technique's cheap mode for the viewport's first frame after a change (settings changes).
+    coarse: dict = {}
     # Configurations the benchmark's --sweep traces (settings changes; RenderSettings fields or options).
     sweep: tuple[dict, ...] = ({"shadow_map_size": 256}, {"shadow_map_size": 512}, {"shadow_map_size": 1024},
                                {"shadow_map_size": 2048})

@@ -7,6 +7,7 @@ class Pcss(Technique):
     identifier = "PCSS"
     label = "PCSS"
     description = "Blocker search and variable-size PCF (Fernando 2005): plausible, not exact, soft shadows"
+    coarse = {"pcss_blocker_samples": 16, "pcss_filter_samples": 16}
 
     def visibility(self, frame, lc, out):
         s = frame.settings

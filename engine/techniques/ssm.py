@@ -196,6 +196,7 @@ class SoftShadowMaps(Technique):
                "made coarser (the paper's remedy for large penumbrae, §5.1)", 1.0, 1.0e5),
     )
     debug_passes = (("SSM Occlusion", 1, "X", "VALUE"),)
+    coarse = {"ssm_map_size": 64}
     sweep = ({"ssm_map_size": 64}, {"ssm_map_size": 128}, {"ssm_map_size": 256}, {"ssm_map_size": 512})
 
     # ------------------------------------------------------------------------------------------------------
