@@ -238,27 +238,16 @@ def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bo
     """EEVEE's V = L(shadowed) / L(unshadowed) under the reference's white-Lambert override and black world;
     unshadowed = every light's use_shadow off. Returns (V, mask, shadowed seconds, pair seconds). Every
     scene setting changed is restored afterwards, also on error."""
-    import tempfile
-
     import bpy
 
-    from .scenes import black_world
     view_layer = view_layer or reference._pick_view_layer(scene)
-    st = reference._Settings()
-    temp_ids = []
-    tmpdir = tempfile.mkdtemp(prefix="penumbra_eevee_")
     r = scene.render
-    try:
-        mat = reference._make_material()
-        temp_ids.append(("materials", mat))
-        world = black_world("penumbra_eevee_black")
-        temp_ids.append(("worlds", world))
+    with reference.measurement_scene(scene, view_layer, width, height, "penumbra_eevee_") as (st, tmpdir):
         st.set(r, "engine", "BLENDER_EEVEE")
         st.set(scene.eevee, "taa_render_samples", int(samples))
         st.set(scene.eevee, "use_raytracing", False)
         st.set(scene.eevee, "use_shadows", True)
         st.set(r, "filter_size", reference.POINT_FILTER_WIDTH)
-        reference.set_measurement_output(st, scene, world, mat, view_layer, width, height)
         lights = {ob.data for ob in scene.objects if ob.type == "LIGHT"}
         for light in lights:
             if hasattr(light, "use_shadow_jitter"):
@@ -280,24 +269,6 @@ def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bo
             images.append(reference.read_exr_combined(path, view_layer.name))
         vis, mask = reference.visibility_from(images[0], images[1])
         return vis, mask, seconds[0], seconds[0] + seconds[1]
-    finally:
-        try:
-            st.restore()
-        finally:
-            for coll, idb in temp_ids:
-                try:
-                    getattr(bpy.data, coll).remove(idb)
-                except Exception:
-                    pass
-            for name in os.listdir(tmpdir):
-                try:
-                    os.remove(os.path.join(tmpdir, name))
-                except OSError:
-                    pass
-            try:
-                os.rmdir(tmpdir)
-            except OSError:
-                pass
 
 
 def eevee_peer(scene, samples: int, width: int, height: int, ref, jitter: bool = True) -> dict:

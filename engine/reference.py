@@ -42,8 +42,10 @@ from __future__ import annotations
 
 import hashlib
 import os
+import shutil
 import tempfile
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -333,23 +335,44 @@ def set_measurement_output(st: "_Settings", scene, world, material, view_layer, 
     st.set(view_layer, "material_override", material)
 
 
+@contextmanager
+def measurement_scene(scene, view_layer, width: int, height: int, prefix: str):
+    """Set `scene` up for a measurement render (black world, white Lambert override, exact resolution, one
+    view layer, 32-bit multilayer EXR) and yield (settings recorder, temp folder). On exit every setting is
+    restored and the temporary material, world and files are removed, also on error."""
+    import bpy
+
+    from .scenes import black_world
+    st = _Settings()
+    temp_ids = []
+    tmpdir = tempfile.mkdtemp(prefix=prefix)
+    try:
+        mat = _make_material()
+        temp_ids.append(("materials", mat))
+        world = black_world(prefix + "black")
+        temp_ids.append(("worlds", world))
+        set_measurement_output(st, scene, world, mat, view_layer, width, height)
+        yield st, tmpdir
+    finally:
+        try:
+            st.restore()
+        finally:
+            for coll, idb in temp_ids:
+                try:
+                    getattr(bpy.data, coll).remove(idb)
+                except Exception:
+                    pass
+            shutil.rmtree(tmpdir, ignore_errors=True)
+
+
 def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_width, view_layer):
     """Render shadowed and unshadowed images; returns (shadowed, unshadowed, seconds)."""
     import bpy
 
-    from .scenes import black_world
     global render_count
-    st = _Settings()
-    temp_ids = []
-    tmpdir = tempfile.mkdtemp(prefix="penumbra_ref_")
     r = scene.render
     cy = scene.cycles
-    try:
-        mat = _make_material()
-        temp_ids.append(("materials", mat))
-        world = black_world("penumbra_reference_black")
-        temp_ids.append(("worlds", world))
-
+    with measurement_scene(scene, view_layer, width, height, "penumbra_ref_") as (st, tmpdir):
         st.set(r, "engine", "CYCLES")
         st.set(cy, "device", "CPU")
         st.set(cy, "samples", int(samples))
@@ -363,7 +386,6 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
         # Cycles ignores filter_width for BOX (always 1 px), so a narrow Gaussian is the point sampler.
         st.set(cy, "pixel_filter_type", filter_type)
         st.set(cy, "filter_width", float(filter_width))
-        set_measurement_output(st, scene, world, mat, view_layer, width, height)
         for ob in scene.objects:
             if ob.type == "LIGHT" and ob.visible_camera:
                 st.set(ob, "visible_camera", False)  # the light's own emitter must not appear in the image
@@ -385,24 +407,6 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
                 raise RuntimeError(f"Cycles wrote no image to {path}")
             images.append(read_exr_combined(path, view_layer.name))
         return images[0], images[1], seconds
-    finally:
-        try:
-            st.restore()
-        finally:
-            for coll, idb in temp_ids:
-                try:
-                    getattr(bpy.data, coll).remove(idb)
-                except Exception:
-                    pass
-            for name in os.listdir(tmpdir):
-                try:
-                    os.remove(os.path.join(tmpdir, name))
-                except OSError:
-                    pass
-            try:
-                os.rmdir(tmpdir)
-            except OSError:
-                pass
 
 
 def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: int | None = None,
