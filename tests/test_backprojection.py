@@ -92,7 +92,9 @@ def test_parallel_planes_match_the_closed_form(plane, acc):
     and (b) for bitmasks, the sample grid: a straight edge sweeping over an N×N grid changes V in steps of
     1/N (≤ 1/16 = 0.0625 for 16×16; the jittered pattern halves the step for axis-aligned edges); the mean
     error of such rounding is ≤ 1/(4N). Bounds: mean < 0.01, 99th percentile < 1/16 + 0.01."""
-    err, _ = _plane_error(plane, bp(shadow_map_size=256, bp_budget=64, bp_accumulation=acc))
+    # The closed form is the plain share of the light (the paper's model): count the samples uniformly.
+    err, _ = _plane_error(plane, bp(shadow_map_size=256, bp_budget=64, bp_accumulation=acc,
+                                    bp_weighting="UNIFORM"))
     print(acc, "mean", err.mean(), "p99", np.percentile(err, 99))
     assert err.mean() < 0.01
     assert np.percentile(err, 99) < 1 / 16 + 0.01
@@ -157,7 +159,8 @@ def test_disk_light_counts_only_samples_inside_the_disk(reference_disk, acc):
     Were they counted the result would be the square light's, which differs from the disk's by ≈ 0.05 on the
     penumbra; we must be within 0.02 of the disk and clearly nearer the disk than the square."""
     snap, v_disk, v_square = reference_disk
-    r = pipeline.render(snap, bp(shadow_map_size=512, bp_budget=64, bp_accumulation=acc))
+    r = pipeline.render(snap, bp(shadow_map_size=512, bp_budget=64, bp_accumulation=acc,
+                                 bp_weighting="UNIFORM"))
     v = r.passes["Visibility"][..., 0]
     pen = (v_disk < 0.99) | (v < 0.99)
     e_disk = np.abs(v - v_disk)[pen].mean()
@@ -167,6 +170,27 @@ def test_disk_light_counts_only_samples_inside_the_disk(reference_disk, acc):
     assert gap > 0.02
     assert e_disk < 0.02
     assert e_disk < 0.5 * e_square
+
+
+@pytest.mark.parametrize("acc", ["BITMASK_16J", "BITMASK_32"])
+def test_irradiance_weighted_samples_match_the_weighted_reference(plane, acc):
+    """With bp_weighting=IRRADIANCE each bit counts its light sample's unoccluded contribution at the receiver
+    (cosines over squared distance), which is the visibility Cycles measures. Against REFERENCE with the
+    same weighting (256 maps) on the parallel planes: the same bounds as the unweighted closed form, and
+    clearly closer than uniform counting (which differs from it by the weighting itself)."""
+    snap, pts, _ = plane
+    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", reference_samples=256,
+                                               shadow_map_size=1024)).passes["Visibility"][..., 0]
+    on_ground = np.abs(pipeline.render(snap, bp()).passes["Depth"][..., 0] - _ground_depth(snap, pts)) < 1e-3
+    errors = {}
+    for weighting in ("IRRADIANCE", "UNIFORM"):
+        v = pipeline.render(snap, bp(shadow_map_size=256, bp_budget=64, bp_accumulation=acc,
+                                     bp_weighting=weighting)).passes["Visibility"][..., 0]
+        sel = on_ground & ((v < 0.99) | (ref < 0.99))
+        errors[weighting] = np.abs(v - ref)[sel].mean()
+    print(acc, errors)
+    assert errors["IRRADIANCE"] < 0.01
+    assert errors["IRRADIANCE"] < 0.5 * errors["UNIFORM"]
 
 
 def test_ellipse_point_spot_and_sun_lights_are_finite_and_soft():

@@ -37,9 +37,6 @@ KNOWN_FAILURES = {
                          "leave gaps (Atty et al. §4.1.2) and ~3 % of the umbra leaks; it passes at 512²"),
     ("fp16_accumulation", "SSM"): ("deliberate: half-float blending stalls the umbra at V ≈ 0.5 (Atty et al. "
                                    "appendix A); fp16_batched and the float32 default pass"),
-    ("big_light", "BACKPROJECTION"): ("micropatches at budget b=16 use coarse min-depth levels for a light 10× "
-                                      "the occluder and over-shadow (mae_shadow 0.063 > 0.06); microquads pass "
-                                      "(0.040)"),
     ("big_light", "PCSS"): ("PCSS with a light 10× the occluder: the mean blocker depth over a search region "
                             "capped at pcss_max_radius (0.1 of the map) over-darkens the core (V_min 0 where the "
                             "true minimum is 0.63); mae_shadow 0.085 > 0.06. A limit of the method, not a bug"),

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from ..gpu.programs import program
-from ..snapshot import AREA, DISK, ELLIPSE
+from ..snapshot import AREA, DISK, ELLIPSE, SUN
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
 from ..gpu.programs import mat_uniform, set_uniforms
 
@@ -229,6 +229,10 @@ class Backprojection(Technique):
         Option("bp_filter_passes", 0, "Filter passes",
                "Post-filter passes of the bitmask visibility driven by the area values (§3.1)", min=0, max=16),
         Option("bp_layers", 1, "Depth layers", "Depth-peeled layers from the light centre (§3.2)", min=1, max=4),
+        Option("bp_weighting", "IRRADIANCE", "Sample weights", "How the bitmask's light samples are counted",
+               items=(("IRRADIANCE", "Irradiance", "Each light sample weighted by its unoccluded contribution "
+                       "at the receiver (cosines over squared distance): the visibility Cycles measures"),
+                      ("UNIFORM", "Uniform (paper)", "Plain share of the light's samples, as in the paper"))),
     )
     coarse = {"bp_budget": 8}
     debug_passes = (
@@ -286,7 +290,8 @@ class Backprojection(Technique):
                         "u_delta": int(light.is_delta), "u_budget": int(o["bp_budget"]), "u_levels": int(levels),
                         "u_mssm_levels": int(n_mssm),
                         "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
-                        "u_valid_count": float(max(valid.sum(), 1))}
+                        "u_valid_count": float(max(valid.sum(), 1)),
+                        "u_area_light": int(light.kind == AREA)}
             info = frame.texture(size, 4)
             images = {0: out, 1: info}
             rgb_tex = None
@@ -297,13 +302,14 @@ class Backprojection(Technique):
                 color_tex = frame.texture((n, n), 4)
                 color_tex.write(np.ascontiguousarray(table, np.float32).tobytes())
                 samplers["u_sample_color"] = color_tex
-                total = table.reshape(-1, 4).sum(axis=0)
-                uniforms["u_color_total"] = tuple(float(v) for v in total)
                 rgb_tex = frame.texture(size, 4)
                 images[2] = rgb_tex
                 lc.visibility_rgb = rgb_tex         # Combined shades each channel with its own visibility
             defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
                        "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
+                       # Irradiance weights need a light plane at a finite distance: not for suns.
+                       "WEIGHTED": int(bits > 0 and o["bp_weighting"] == "IRRADIANCE" and light.kind != SUN
+                                       and not light.is_delta),
                        "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes)}
             frame.progress.check()
             with frame.timings.stage("bp_gather"):

@@ -34,6 +34,9 @@
 #ifndef TEXTURED
 #define TEXTURED 0
 #endif
+#ifndef WEIGHTED
+#define WEIGHTED 0              // 1: each light sample weighted by its unoccluded contribution at the receiver
+#endif
 #ifndef NEED_AREA
 #define NEED_AREA 1
 #endif
@@ -49,6 +52,7 @@ uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per c
 uniform uint u_valid[BITS];     // per bitmask row: samples inside the light's shape
 #endif
 uniform float u_valid_count;
+uniform int u_area_light;       // one-sided planar emitter (its cosine counts in the sample weights)
 
 uniform sampler2D u_depth;      // layer 0 depth map (R32F), for delta lights
 uniform sampler2D u_hsm0;       // per layer: min/max pyramid (RG32F, power-of-two padded)
@@ -62,7 +66,6 @@ layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 layout(rgba32f, binding = 1) uniform writeonly image2D u_info;      // class, level, count, A
 #if TEXTURED
 uniform sampler2D u_sample_color;   // BITS×BITS: rgb colour of each light sample, a its luminance
-uniform vec4 u_color_total;         // Σ over valid samples of (rgb, luminance)
 layout(rgba32f, binding = 2) uniform writeonly image2D u_rgb;
 #endif
 
@@ -323,6 +326,21 @@ void microquad(int layer, int l, ivec2 c) {
 }
 
 // ---- main -------------------------------------------------------------------------------------------------
+#if WEIGHTED
+// Unoccluded contribution of light sample (row l, column k) at the receiver: cosθ_receiver · cosθ_light / d²
+// for an area light, cosθ_receiver / d² for a sphere's disk. The light-local sample position mirrors
+// sample_positions() in engine/techniques/backprojection.py.
+float sample_weight(int l, int k) {
+    float n = float(BITS);
+    vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
+    vec3 to_sample = vec3(q * u_light_half, 0.0) - g_r.local;
+    float d2 = max(dot(to_sample, to_sample), 1e-30);
+    float w = max(dot(g_r.normal, to_sample), 0.0) / (d2 * sqrt(d2));
+    if (u_area_light == 1) w *= max(to_sample.z, 0.0) * inversesqrt(d2);
+    return w;
+}
+#endif
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
@@ -405,19 +423,31 @@ void main() {
             float lit = 0.0;
             for (int i = 0; i < BITS; ++i) lit += float(bitCount(u_valid[i] & ~g_occ[i]));
             v = lit / u_valid_count;
-#if TEXTURED
-            // §3.3: coloured light, each sample weighted by the light's colour there.
-            vec4 sum = vec4(0.0);
+#if TEXTURED || WEIGHTED
+            // Weighted counts: §3.3's coloured light (each sample weighted by the light's colour there) and/or
+            // each sample's unoccluded contribution at the receiver.
+            vec4 sum_lit = vec4(0.0), sum_all = vec4(0.0);
             for (int i = 0; i < BITS; ++i) {
-                uint m = u_valid[i] & ~g_occ[i];
+                uint m = u_valid[i];
                 while (m != 0u) {
                     int k = findLSB(m);
                     m &= m - 1u;
-                    sum += texelFetch(u_sample_color, ivec2(k, i), 0);
+#if TEXTURED
+                    vec4 w = texelFetch(u_sample_color, ivec2(k, i), 0);
+#else
+                    vec4 w = vec4(1.0);
+#endif
+#if WEIGHTED
+                    w *= sample_weight(i, k);
+#endif
+                    sum_all += w;
+                    if ((g_occ[i] & (1u << uint(k))) == 0u) sum_lit += w;
                 }
             }
-            rgb = sum.rgb / max(u_color_total.rgb, vec3(1e-30));
-            v = sum.a / max(u_color_total.a, 1e-30);             // luminance-weighted scalar visibility
+            if (sum_all.a > 0.0) v = sum_lit.a / sum_all.a;      // luminance-weighted scalar visibility
+#if TEXTURED
+            rgb = sum_lit.rgb / max(sum_all.rgb, vec3(1e-30));
+#endif
 #endif
 #else
             v = clamp(a_vis, 0.0, 1.0);                          // GBP06: accumulated area, clamped to 1
