@@ -16,9 +16,8 @@ Outputs (each written atomically): results.json (everything, with machine info),
 (one Markdown table per scene) and pareto_<scene>.png (time against mae_shadow). `summary_table` gives,
 per scene, our fastest configuration whose mae_shadow is no worse than Cycles at `target_samples`.
 
-Sweeps: `sweep_configs(technique)` — the `sweep` a technique class declares itself (settings-change dicts:
-RenderSettings fields or technique options), else this module's `SWEEPS` entry for it, else the sweep every
-technique inherits from `Technique` (shadow-map sizes). `register_sweep` sets a `SWEEPS` entry.
+Sweeps: `sweep_configs(technique)` — the `sweep` the technique declares (settings-change dicts: RenderSettings
+fields or technique options; by default the shadow-map sizes every technique inherits from `Technique`).
 """
 from __future__ import annotations
 
@@ -54,38 +53,14 @@ PEER_BUDGET_S = 5.0                 # Cycles pairs per sample count: repeated (�
 METRIC_KEYS = ("mae_shadow", "mae", "rmse", "max_abs", "pixel_match", "ssim_shaded", "n_mask", "n_shadow")
 STAGES = ("upload", "gbuffer", "readback", "irradiance", "light_view", "shadow_map", "visibility", "accumulate")
 
-MAP_SIZE_SWEEP = [{"shadow_map_size": n} for n in (256, 512, 1024, 2048)]
-SWEEPS: dict[str, list[dict]] = {
-    "HARD": MAP_SIZE_SWEEP,
-    "PCF": MAP_SIZE_SWEEP + [{"pcf_radius": r} for r in (1.0, 2.0, 4.0)],
-    "PCSS": MAP_SIZE_SWEEP + [{"pcss_blocker_samples": b, "pcss_filter_samples": f}
-                              for b, f in ((16, 32), (32, 64), (64, 128))],
-    "REFERENCE": MAP_SIZE_SWEEP + [{"reference_samples": n} for n in (16, 64, 256, 1024)],
-}
-
 _SHORT = {"shadow_map_size": "map", "pcf_radius": "radius", "pcf_taps": "taps",
           "pcss_blocker_samples": "blocker", "pcss_filter_samples": "filter", "reference_samples": "samples"}
 
 
-def register_sweep(identifier: str, configs: list[dict]) -> None:
-    """Set the sweep of technique `identifier`: a list of RenderSettings changes, one per configuration."""
-    SWEEPS[identifier] = [dict(c) for c in configs]
-
-
 def sweep_configs(identifier: str) -> list[dict]:
-    """The configurations a --sweep runs for `identifier` (see the module docstring for the precedence)."""
+    """The configurations a --sweep runs for technique `identifier` (its declared `sweep`)."""
     from .techniques import get as get_technique
-    from .techniques.base import Technique
-    technique = get_technique(identifier)
-    declared = getattr(type(technique), "sweep", None)
-    inherited = declared is None or declared is getattr(Technique, "sweep", None)   # the base class default
-    if not inherited and declared:
-        configs = declared
-    elif identifier in SWEEPS:
-        configs = SWEEPS[identifier]
-    else:
-        configs = declared or MAP_SIZE_SWEEP
-    return [dict(c) for c in configs]
+    return [dict(c) for c in get_technique(identifier).sweep]
 
 
 def config_label(changes: dict) -> str:

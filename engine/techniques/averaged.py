@@ -12,7 +12,7 @@ import numpy as np
 
 from .. import lightview
 from ..snapshot import AREA, DISK, ELLIPSE, SUN, Light
-from .base import Technique
+from .base import MAP_SIZE_SWEEP, Technique
 
 
 def unit_square_samples(n: int, seed: int = 0) -> np.ndarray:
@@ -65,6 +65,7 @@ class AveragedMaps(Technique):
     description = "Average of N hard shadow maps from points on the light: slow ground truth"
     needs = ()
     coarse = {"reference_samples": 8}
+    sweep = MAP_SIZE_SWEEP + tuple({"reference_samples": n} for n in (16, 64, 256, 1024))
 
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light

@@ -13,6 +13,7 @@ from ..lightview import LightView
 from ..snapshot import Light
 
 DEPTH_MAP = "depth_map"     # hard depth map of the casters from the light view's eye
+MAP_SIZE_SWEEP = tuple({"shadow_map_size": n} for n in (256, 512, 1024, 2048))
 
 
 @dataclass
@@ -72,8 +73,7 @@ class Technique:
     # The technique's cheap mode for the viewport's first frame after a change (settings changes).
     coarse: dict = {}
     # Configurations the benchmark's --sweep traces (settings changes; RenderSettings fields or options).
-    sweep: tuple[dict, ...] = ({"shadow_map_size": 256}, {"shadow_map_size": 512}, {"shadow_map_size": 1024},
-                               {"shadow_map_size": 2048})
+    sweep: tuple[dict, ...] = MAP_SIZE_SWEEP
 
     def visibility(self, frame, lc: LightContext, out) -> None:
         raise NotImplementedError

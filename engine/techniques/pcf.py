@@ -1,11 +1,12 @@
 """PCF: percentage-closer filtering with a fixed kernel (Reeves, Salesin, Cook 1987), bilinear taps."""
-from .base import Technique
+from .base import MAP_SIZE_SWEEP, Technique
 
 
 class Pcf(Technique):
     identifier = "PCF"
     label = "PCF"
     description = "Fixed-size percentage-closer filter: uniform blur, ignores light size and distance"
+    sweep = MAP_SIZE_SWEEP + tuple({"pcf_radius": r} for r in (1.0, 2.0, 4.0))
 
     def visibility(self, frame, lc, out):
         s = frame.settings

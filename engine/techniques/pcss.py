@@ -1,6 +1,6 @@
 """PCSS: percentage-closer soft shadows (Fernando 2005): blocker search, penumbra estimate, variable PCF.
 The main foil of the soft-shadow-map papers."""
-from .base import Technique, light_shape_uniforms
+from .base import MAP_SIZE_SWEEP, Technique, light_shape_uniforms
 
 
 class Pcss(Technique):
@@ -8,6 +8,8 @@ class Pcss(Technique):
     label = "PCSS"
     description = "Blocker search and variable-size PCF (Fernando 2005): plausible, not exact, soft shadows"
     coarse = {"pcss_blocker_samples": 16, "pcss_filter_samples": 16}
+    sweep = MAP_SIZE_SWEEP + tuple({"pcss_blocker_samples": b, "pcss_filter_samples": f}
+                                   for b, f in ((16, 32), (32, 64), (64, 128)))
 
     def visibility(self, frame, lc, out):
         s = frame.settings
