@@ -191,13 +191,18 @@ class SoftShadowMaps(Technique):
         Option("ssm_scatter", "RASTER", "Scatter", "How micro-patches are scattered", items=(
             ("RASTER", "Instanced Quads", "One quad per micro-patch, additive float blending (faster here)"),
             ("COMPUTE", "Compute + Atomics", "One invocation per micro-patch, fixed-point integer atomics"))),
+        Option("ssm_weighting", "IRRADIANCE", "Weighting", "How a micro-patch's hidden part of the light counts",
+               items=(("IRRADIANCE", "Irradiance", "Weighted by its share of the light's irradiance at a "
+                       "receiver facing the light (parallel-rectangle form factor): closer to Cycles"),
+                      ("UNIFORM", "Uniform (paper)", "Plain share of the light's area, as in the paper"))),
         Option("ssm_budget", 200.0, "Work Budget (M)",
                "Millions of soft-shadow-map texel updates allowed per occluder map; above it the maps are "
                "made coarser (the paper's remedy for large penumbrae, §5.1)", 1.0, 1.0e5),
     )
     debug_passes = (("SSM Occlusion", 1, "X", "VALUE"),)
-    coarse = {"ssm_map_size": 64}
-    sweep = ({"ssm_map_size": 64}, {"ssm_map_size": 128}, {"ssm_map_size": 256}, {"ssm_map_size": 512})
+    coarse = {"ssm_map_size": 64, "ssm_weighting": "UNIFORM"}
+    sweep = ({"ssm_map_size": 64}, {"ssm_map_size": 128}, {"ssm_map_size": 256}, {"ssm_map_size": 512},
+             {"ssm_weighting": "UNIFORM"})
 
     # ------------------------------------------------------------------------------------------------------
     def visibility(self, frame, lc, out):
@@ -350,6 +355,7 @@ class SoftShadowMaps(Technique):
         g: farthest). §3.4 on the GPU; precision and batching per appendix A."""
         ctx = frame.ctx
         size = (view.width, view.height)
+        defines = {"SSM_WEIGHTED": int(frame.settings.option("ssm_weighting") == "IRRADIANCE")}
         uniforms = {"u_light_window_ssm": view.window, "u_ssm_size": size, "u_half": half,
                     "u_ortho": int(view.is_ortho), "u_bias_texels": bias}
         patches = frame._own(ctx.buffer(np.ascontiguousarray(rows, np.float32).tobytes()))
@@ -362,7 +368,7 @@ class SoftShadowMaps(Technique):
                 t.write(np.zeros(size[0] * size[1], np.uint32).tobytes())
                 t.bind_to_image(binding, read=True, write=True)
                 sums.append(t)
-            prog = program(frame.worker, compute="ssm/scatter.comp")
+            prog = program(frame.worker, compute="ssm/scatter.comp", defines=defines)
             bind_samplers(prog, {"u_receivers": maps["receivers"]})
             set_uniforms(prog, {**uniforms, "u_count": m})
             prog.run((m + 63) // 64, 1, 1)
@@ -376,7 +382,7 @@ class SoftShadowMaps(Technique):
             return ssm
 
         dtype = "f4" if precision == "FLOAT32" else "f2"
-        prog = program(frame.worker, "ssm/scatter.vert", "ssm/scatter.frag")
+        prog = program(frame.worker, "ssm/scatter.vert", "ssm/scatter.frag", defines=defines)
         bind_samplers(prog, {"u_receivers": maps["receivers"]})
         set_uniforms(prog, uniforms)
         vao = frame._own(ctx.vertex_array(prog, []))

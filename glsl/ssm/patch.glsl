@@ -12,6 +12,9 @@
 // so the patch covers the axis-aligned rectangle [(lo - t)/s, (hi - t)/s] of the light, whose half extent
 // is h (metres, or tan(angle/2) for a sun). Normalising the light to [0, 1]² (the paper's MOV_SAT / SUB /
 // MUL trick) the hidden fraction is the product of the two clamped interval lengths.
+#ifndef SSM_WEIGHTED
+#define SSM_WEIGHTED 0                  // 1: occlusion weighted by irradiance (see weighted_fraction)
+#endif
 uniform vec4 u_light_window_ssm;    // x0, x1, y0, y1 of the SSM view (window units)
 uniform ivec2 u_ssm_size;           // occluder map = receiver map = soft shadow map texels
 uniform vec2 u_half;                // light half extent (bounding rectangle for round lights)
@@ -31,9 +34,35 @@ bool depth_valid(float z) {
     return z > 0.0 && z < 1.0e30;
 }
 
+#if SSM_WEIGHTED
+// Irradiance weighting (our addition; the paper counts the plain area). The share of the light's irradiance
+// that a rectangle of the light plane carries to a receiver facing the light, at height zr over its foot
+// point: the form factor of a parallel rectangle, F(corner a, b) = a/√(1+a²)·atan(b/√(1+a²)) + b/√(1+b²)·
+// atan(a/√(1+b²)) with a, b in units of zr (the differential-area-to-parallel-rectangle form factor, up to a
+// constant), odd in each argument, so any rectangle is four signed corners.
+float ff_corner(float a, float b) {
+    float ra = inversesqrt(1.0 + a * a), rb = inversesqrt(1.0 + b * b);
+    return a * ra * atan(b * ra) + b * rb * atan(a * rb);
+}
+
+float ff_rect(vec4 r) {          // x0, y0, x1, y1
+    return ff_corner(r.z, r.w) - ff_corner(r.x, r.w) - ff_corner(r.z, r.y) + ff_corner(r.x, r.y);
+}
+
+// Hidden share of the light's irradiance at a receiver at window position t, depth zr, for the overlap `ab`
+// (normalised light coordinates [0, 1]²). Perspective views only (a sun's directions are all equal).
+float weighted_fraction(vec4 ab, vec2 t, float zr) {
+    vec2 h = max(u_half, vec2(1e-9));
+    vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
+    vec4 light = vec4(-h, h) / zr - t.xyxy;
+    float total = ff_rect(light);
+    return total > 0.0 ? clamp(ff_rect(rect) / total, 0.0, 1.0) : (ab.z - ab.x) * (ab.w - ab.y);
+}
+#endif
+
 // Lean form for the scatter's inner loop: d = (lo - t, hi - t) in window units, inv_zo = 1/zo, inv_2h =
 // 1/(2h), texel_world_1 = world size of a texel at unit depth (perspective) or its size (ortho).
-float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h, float texel_world_1) {
+float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h, float texel_world_1, vec2 t) {
     // No texel-sized bias is needed: a surface never occludes its own object (the ids differ), so only
     // rasterisation rounding between two objects' maps has to be absorbed (relative 1e-5).
     if (!(zr > 0.0 && zr < 1.0e30) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
@@ -41,6 +70,9 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
     vec2 k = inv_2h / s;
     vec4 ab = clamp(vec4(0.5) + d * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
+#if SSM_WEIGHTED
+    if (u_ortho == 0 && w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
+#endif
     return w.x * w.y;
 }
 
@@ -58,5 +90,8 @@ float patch_occlusion(vec2 patch_texel, float zo, vec2 t_texel, float zr) {
     vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);
     vec4 ab = clamp(vec4(0.5) + vec4(lo - t, hi - t) * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
+#if SSM_WEIGHTED
+    if (u_ortho == 0 && w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
+#endif
     return w.x * w.y;
 }

@@ -17,8 +17,8 @@ void main() {
     vec2 inv_2h = 0.5 / max(u_half, vec2(1e-9));
     vec4 z = texelFetch(u_receivers, texel, 0);
     // An object does not shadow itself (the caster/receiver split applied per object).
-    float on = z.y == v_depth.z ? 0.0 : patch_occlusion_fast(d, v_depth.x, v_depth.y, z.x, inv_2h, tw1);
+    float on = z.y == v_depth.z ? 0.0 : patch_occlusion_fast(d, v_depth.x, v_depth.y, z.x, inv_2h, tw1, t);
     float of = z.w == v_depth.z ? 0.0 : z.z == z.x ? on
-             : patch_occlusion_fast(d, v_depth.x, v_depth.y, z.z, inv_2h, tw1);
+             : patch_occlusion_fast(d, v_depth.x, v_depth.y, z.z, inv_2h, tw1, t);
     f_occlusion = vec2(on, of);
 }
