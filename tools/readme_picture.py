@@ -1,5 +1,5 @@
-"""Makes docs/suzanne.png for the README: the built-in `suzanne` scene with HARD, PCSS and REFERENCE next to
-Cycles, each with its time. Run: .venv/bin/python tools/readme_picture.py"""
+"""Makes docs/suzanne.png for the README: the built-in `suzanne` scene with every technique next to Cycles,
+each with its time. Run: .venv/bin/python tools/readme_picture.py"""
 import os
 import time
 
@@ -19,7 +19,8 @@ from penumbra.engine.settings import RenderSettings  # noqa: E402
 sc = scenes.build("suzanne", resolution=(256, 256))
 snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
 panels = []
-for technique, extra in (("HARD", {}), ("PCSS", {}), ("REFERENCE", {"reference_samples": 256})):
+for technique, extra in (("HARD", {}), ("PCSS", {}), ("BACKPROJECTION", {}), ("SSM", {}),
+                         ("REFERENCE", {"reference_samples": 256})):
     settings = RenderSettings(technique=technique, **extra)
     pipeline.render(snap, settings)                       # compile shaders first
     start = time.perf_counter()
@@ -37,8 +38,8 @@ start = time.perf_counter()
 bpy.ops.render.render(write_still=True)
 seconds = time.perf_counter() - start
 panels.append((f"Cycles 256 spp — {seconds:.1f} s", exr.read(sc.render.filepath)["Combined"]))
-fig, axes = plt.subplots(1, 4, figsize=(16, 4.4))
-for ax, (title, image) in zip(axes, panels):
+fig, axes = plt.subplots(2, 3, figsize=(12, 8.6))
+for ax, (title, image) in zip(axes.ravel(), panels):
     ax.imshow(exr.to_srgb8(image))
     ax.set_title(title)
     ax.axis("off")
