@@ -133,3 +133,17 @@ def test_zero_size_area_light_is_a_point_light_with_a_hard_shadow():
     for technique in TECHNIQUES:
         v = pipeline.render(snap, RenderSettings(technique=technique, reference_samples=8)).passes["Visibility"]
         assert np.mean(np.abs(v - hard)) < 0.01, technique
+
+
+def test_a_stop_request_cancels_the_frame():
+    """RenderEngine.test_break reaches the GPU thread: a REFERENCE frame stops between light samples."""
+    from penumbra.engine.gpu.context import Cancelled
+    calls = []
+
+    def should_stop():
+        calls.append(1)
+        return True
+    with pytest.raises(Cancelled):
+        pipeline.render(floating_plane(64), RenderSettings(technique="REFERENCE", reference_samples=4096,
+                                                           shadow_map_size=1024), should_stop=should_stop)
+    assert calls
