@@ -10,7 +10,7 @@ Per light (Fig. 3 of the paper):
   3. scatter: for every SSM texel inside that rectangle the patch is back-projected onto the light and the
      hidden fraction added (§3.4) — instanced quads with additive blending (default) or a compute pass with
      fixed-point integer atomics (`ssm_scatter`);
-  4. two-sided (§3.5): a second occluder map of back faces gets its own SSM; merged by maximum;
+  4. two-sided (§3.5): a second occluder map of the farthest back faces gets its own SSM; merged by maximum;
   5. the SSM is projected onto the receivers in the camera view: V = 1 - occlusion.
 
 Roles (Object Properties → Penumbra → Shadow Role): micro-patches come from CASTER and BOTH objects,
@@ -185,7 +185,8 @@ class SoftShadowMaps(Technique):
                "finds ~200 near optimal; cost grows with its square times the penumbra area)", 16, 2048),
         Option("ssm_passes", "TWO", "Passes", "Occluder maps scattered", items=(
             ("ONE", "One Pass", "Front-most occluder surfaces only"),
-            ("TWO", "Two Passes", "Front-most and back-facing occluder surfaces, merged by maximum (§3.5)"))),
+            ("TWO", "Two Passes", "Front-most and farthest back-facing occluder surfaces, merged by maximum "
+                    "(§3.5)"))),
         Option("ssm_precision", "FLOAT32", "Accumulation", "Precision of the soft-shadow-map sums",
                items=PRECISION_ITEMS),
         Option("ssm_scatter", "RASTER", "Scatter", "How micro-patches are scattered", items=(
@@ -281,7 +282,7 @@ class SoftShadowMaps(Technique):
 
     # ------------------------------------------------------------------------------------------------------
     def _maps(self, frame, view, casters, receivers, two_pass) -> dict:
-        """Occluder maps (front-most casters; back-facing casters) and receiver maps (nearest; farthest),
+        """Occluder maps (front-most casters; farthest back faces, §3.5) and receiver maps (nearest; farthest),
         linear depth from the light centre. Empty texels: NO_OCCLUDER (nearest) or 0 (farthest)."""
         ctx = frame.ctx
         prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
@@ -289,7 +290,7 @@ class SoftShadowMaps(Technique):
         jobs = [("front", "caster", casters, False, False), ("near", "receiver", receivers, False, False),
                 ("far", "receiver", receivers, True, False)]
         if two_pass:
-            jobs.append(("back", "caster", casters, False, True))
+            jobs.append(("back", "caster", casters, True, True))
         out = {}
         ctx.enable(ctx.DEPTH_TEST)
         ctx.disable(ctx.CULL_FACE)
