@@ -22,6 +22,7 @@ import time
 import numpy as np
 
 from . import metrics, pipeline, reference
+from .files import write_atomic
 from .settings import RenderSettings
 
 DEFAULT = {"bp_accumulation": "BITMASK_16J", "bp_primitive": "MICROPATCH", "bp_refinement": "MSSM", "bp_budget": 16}
@@ -192,13 +193,6 @@ def markdown(results: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write_atomic(path: str, text: str) -> None:
-    tmp = f"{path}.{os.getpid()}.tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(text)
-    os.replace(tmp, path)
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m penumbra.engine.backprojection_study",
                                  description=__doc__.split("\n")[0])
@@ -222,8 +216,8 @@ def main(argv=None) -> int:
     if not args.no_perf:
         results["build"] = build_times(log=log)
         results["perf"] = perf(log=log)
-    _write_atomic(os.path.join(args.out, "backprojection_study.json"), json.dumps(results, indent=1, default=str))
-    _write_atomic(os.path.join(args.out, "backprojection_study.md"), markdown(results))
+    write_atomic(os.path.join(args.out, "backprojection_study.json"), json.dumps(results, indent=1, default=str))
+    write_atomic(os.path.join(args.out, "backprojection_study.md"), markdown(results))
     print(markdown(results))
     return 0
 

@@ -36,6 +36,7 @@ from dataclasses import asdict
 import numpy as np
 
 from . import metrics, pipeline, reference
+from .files import write_atomic
 from .settings import RenderSettings
 
 DEFAULT_RESOLUTION = (128, 128)
@@ -545,14 +546,6 @@ def _clean(x):
     return x
 
 
-def _write_atomic(path: str, data) -> None:
-    tmp = f"{path}.{os.getpid()}.tmp"
-    mode = "wb" if isinstance(data, bytes) else "w"
-    with open(tmp, mode, **({} if mode == "wb" else {"encoding": "utf-8", "newline": ""})) as f:
-        f.write(data)
-    os.replace(tmp, path)
-
-
 CSV_FIELDS = ["scene", "width", "height", "kind", "technique", "config", "repeats", "time_ms", "first_frame_ms",
               *METRIC_KEYS, "noise_floor_mae_shadow", "reference_samples"]
 
@@ -669,15 +662,15 @@ def plot_pareto(entry: dict, machine: dict, path: str) -> None:
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
-    _write_atomic(path, buf.getvalue())
+    write_atomic(path, buf.getvalue())
 
 
 def write_outputs(out_dir: str, results: dict, plot_scene: dict | None = None) -> None:
     """results.json/.csv/.md, and the Pareto plot of `plot_scene` (of every scene when None)."""
     os.makedirs(out_dir, exist_ok=True)
-    _write_atomic(os.path.join(out_dir, "results.json"),
+    write_atomic(os.path.join(out_dir, "results.json"),
                   json.dumps(_clean(results), indent=1, allow_nan=False, default=str))
-    _write_atomic(os.path.join(out_dir, "results.csv"), results_csv(results))
-    _write_atomic(os.path.join(out_dir, "results.md"), results_markdown(results))
+    write_atomic(os.path.join(out_dir, "results.csv"), results_csv(results))
+    write_atomic(os.path.join(out_dir, "results.md"), results_markdown(results))
     for entry in ([plot_scene] if plot_scene is not None else results["scenes"]):
         plot_pareto(entry, results["machine"], os.path.join(out_dir, f"pareto_{entry['scene']}.png"))

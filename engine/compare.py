@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import exr, metrics, pipeline, reference
+from .files import write_atomic
 from .settings import RenderSettings
 
 
@@ -84,13 +85,10 @@ def write_outputs(out_dir: str, cmp: Comparison, passes: dict, ref) -> None:
                                      .astype(np.float32)})
     exr.write_png(stem + "_compare.png", comparison_strip(passes["Visibility"][..., 0], ref.visibility,
                                                           ref.mask))
-    tmp = stem + ".json.tmp"
-    with open(tmp, "w") as f:
-        json.dump({"scene": cmp.scene, "technique": cmp.technique, "metrics": cmp.metrics,
-                   "noise_floor": cmp.noise_floor, "ours_ms": cmp.ours_ms, "cycles_seconds": cmp.cycles_seconds,
-                   "reference_samples": cmp.reference_samples,
-                   "unshadowed_rel_error": cmp.unshadowed_rel_error}, f, indent=2)
-    os.replace(tmp, stem + ".json")
+    write_atomic(stem + ".json", json.dumps({
+        "scene": cmp.scene, "technique": cmp.technique, "metrics": cmp.metrics, "noise_floor": cmp.noise_floor,
+        "ours_ms": cmp.ours_ms, "cycles_seconds": cmp.cycles_seconds, "reference_samples": cmp.reference_samples,
+        "unshadowed_rel_error": cmp.unshadowed_rel_error}, indent=2))
 
 
 def comparison_strip(v: np.ndarray, v_ref: np.ndarray, mask: np.ndarray) -> np.ndarray:

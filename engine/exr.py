@@ -1,31 +1,15 @@
-"""Multilayer EXR and PNG files, written atomically: into a temporary file beside the target, then renamed,
-so a crash or a failed frame never leaves a half-written file where a good one (or none) was."""
+"""Multilayer EXR and PNG files, written atomically (engine/files.py)."""
 from __future__ import annotations
 
-import os
-import tempfile
 import zlib
 import struct
 
 import numpy as np
 
+from .files import atomic_write
 from .passes import BASE_PASSES, DEBUG_PASSES
 
 _CHANNELS = {name: chan_id for name, _, chan_id, _ in BASE_PASSES + DEBUG_PASSES}
-
-
-def _atomic(path: str, write_to) -> None:
-    folder = os.path.dirname(os.path.abspath(path)) or "."
-    os.makedirs(folder, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".penumbra-", suffix=os.path.splitext(path)[1], dir=folder)
-    os.close(fd)
-    try:
-        write_to(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def write(path: str, passes: dict, metadata: dict | None = None) -> None:
@@ -45,7 +29,7 @@ def write(path: str, passes: dict, metadata: dict | None = None) -> None:
     def _write(tmp):
         with OpenEXR.File(header, channels) as f:
             f.write(tmp)
-    _atomic(path, _write)
+    atomic_write(path, _write)
 
 
 def read(path: str) -> dict:
@@ -87,4 +71,4 @@ def write_png(path: str, rgb8: np.ndarray) -> None:
     def _write(tmp):
         with open(tmp, "wb") as f:
             f.write(png)
-    _atomic(path, _write)
+    atomic_write(path, _write)

@@ -21,13 +21,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from .files import write_atomic
 
 MAP_SIZES = (64, 96, 128, 192, 256, 384, 512)
 LIGHT_FRACTIONS = (0.01, 0.1, 0.25, 0.5, 0.75, 1.0)    # × the occluder's width
@@ -143,18 +143,6 @@ PLOTS = (
 )
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def write(out: Path, results: dict) -> None:
     import io
     import matplotlib
@@ -180,9 +168,9 @@ def write(out: Path, results: dict) -> None:
         buf = io.BytesIO()
         fig.savefig(buf, format="png")
         plt.close(fig)
-        _atomic_write(out / filename, buf.getvalue())
-    _atomic_write(out / "ssm_study.json", json.dumps(results, indent=1, default=float).encode())
-    _atomic_write(out / "ssm_study.md", markdown(results).encode())
+        write_atomic(out / filename, buf.getvalue())
+    write_atomic(out / "ssm_study.json", json.dumps(results, indent=1, default=float).encode())
+    write_atomic(out / "ssm_study.md", markdown(results).encode())
 
 
 def markdown(results: dict) -> str:
