@@ -79,7 +79,8 @@ def light_extent_local(light: Light) -> np.ndarray:
     return np.array([[sx * hx, sy * hy, 0.0] for sx in (-1, 1) for sy in (-1, 1)])
 
 
-def _box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The 8 corners (8, 3) of an axis-aligned box."""
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
@@ -104,8 +105,8 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     if casters is None:
         casters = receivers
     c_lo, c_hi = (np.asarray(v, float) for v in casters)
-    rec = _to_local(world_to_local, _box_corners(r_lo, r_hi))
-    cas = _to_local(world_to_local, _box_corners(c_lo, c_hi))
+    rec = to_local(world_to_local, box_corners(r_lo, r_hi))
+    cas = to_local(world_to_local, box_corners(c_lo, c_hi))
     extent = max(float(np.linalg.norm(r_hi - r_lo)), float(np.linalg.norm(c_hi - c_lo)), 1e-9)
     is_sun = light.kind == SUN
 
@@ -149,7 +150,8 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
                      tuple(float(v) for v in window), clamped)
 
 
-def _to_local(world_to_local: np.ndarray, pts: np.ndarray) -> np.ndarray:
+def to_local(world_to_local: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Points (N, 3) through a 4×4 affine matrix."""
     return (world_to_local @ np.c_[pts, np.ones(len(pts))].T).T[:, :3]
 
 
@@ -198,7 +200,7 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
     An axis-aligned flat caster (a ground plane) shadows only what lies beyond its plane as seen from the
     light; when no receiver does, it is left out, so a large floor does not stretch every light's map.
     """
-    r_corners = _box_corners(*receivers)
+    r_corners = box_corners(*receivers)
     keep = []
     for index in np.flatnonzero(casters):
         lo, hi = object_bounds[index]

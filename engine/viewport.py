@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from . import lightview
 from .gpu.context import Cancelled, GpuWorker
 from .gpu.geometry import Draw, SceneGeometry, interleave
 from .settings import RenderSettings
@@ -152,6 +153,37 @@ def _read_piece(ob, extraction, warnings) -> MeshPiece | None:
                      np.ascontiguousarray(geometry["albedo"]))
 
 
+class UpdateRecorder:
+    """Collects depsgraph.updates outside a viewport (benchmark, tests), in the form view_update sees them:
+    a depsgraph_update_post handler while the recorder is open; `take()` applies pending edits and returns
+    the updates since the last call."""
+
+    class Update:
+        def __init__(self, u):
+            self.id = u.id.original if hasattr(u.id, "original") else u.id
+            self.is_updated_geometry = u.is_updated_geometry
+            self.is_updated_transform = u.is_updated_transform
+
+    def __init__(self):
+        import bpy
+        self._batch: list = []
+        bpy.app.handlers.depsgraph_update_post.append(self)
+
+    def __call__(self, scene, depsgraph):
+        self._batch.extend(self.Update(u) for u in depsgraph.updates)
+
+    def take(self) -> list:
+        import bpy
+        bpy.context.view_layer.update()
+        out, self._batch = self._batch, []
+        return out
+
+    def close(self) -> None:
+        import bpy
+        if self in bpy.app.handlers.depsgraph_update_post:
+            bpy.app.handlers.depsgraph_update_post.remove(self)
+
+
 # ---------------------------------------------------------------------------------------------------------
 # GPU side
 # ---------------------------------------------------------------------------------------------------------
@@ -204,8 +236,7 @@ class ViewportGeometry(SceneGeometry):
         out[:, 0], out[:, 1] = np.inf, -np.inf
         for inst in self._instances:
             lo, hi = self._buffers[inst.key][3]
-            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-            world = corners @ inst.matrix[:3, :3].T + inst.matrix[:3, 3]
+            world = lightview.to_local(inst.matrix, lightview.box_corners(lo, hi))
             out[inst.object_index, 0] = np.minimum(out[inst.object_index, 0], world.min(axis=0))
             out[inst.object_index, 1] = np.maximum(out[inst.object_index, 1], world.max(axis=0))
         return out

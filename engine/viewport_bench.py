@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from .settings import RenderSettings
+from .files import write_atomic
 
 EVENTS = ("camera", "object", "light")
 
@@ -32,13 +33,9 @@ def measure(scene_name: str, technique: str, *, size=(1280, 720), coarse_map=256
     import bpy
     from . import scenes
     from .scene import extract
-    from .viewport import ViewportSession
+    from .viewport import UpdateRecorder, ViewportSession
     sc = scenes.build(scene_name, resolution=size)
-    updates: list = []
-
-    def handler(scene, depsgraph):
-        updates.extend(_Update(u) for u in depsgraph.updates)
-    bpy.app.handlers.depsgraph_update_post.append(handler)
+    updates = UpdateRecorder()
     try:
         depsgraph = bpy.context.evaluated_depsgraph_get()
         camera = extract(depsgraph, sc).camera
@@ -64,9 +61,7 @@ def measure(scene_name: str, technique: str, *, size=(1280, 720), coarse_map=256
                     else:
                         light.data.energy *= 1.01
                         light.location.z += 0.01
-                    bpy.context.view_layer.update()
-                    batch, updates[:] = list(updates), []
-                    session.sync(bpy.context.evaluated_depsgraph_get(), batch)
+                    session.sync(bpy.context.evaluated_depsgraph_get(), updates.take())
                 session.request(camera, settings, coarse_map=coarse_map, coarse_scale=coarse_scale)
                 request = session._request
                 _wait_first(session, request)
@@ -83,13 +78,7 @@ def measure(scene_name: str, technique: str, *, size=(1280, 720), coarse_map=256
         session.free()
         return rows
     finally:
-        bpy.app.handlers.depsgraph_update_post.remove(handler)
-
-
-class _Update:
-    def __init__(self, u):
-        self.id = u.id.original if hasattr(u.id, "original") else u.id
-        self.is_updated_geometry, self.is_updated_transform = u.is_updated_geometry, u.is_updated_transform
+        updates.close()
 
 
 def run(out_dir: str, scenes=("suzanne", "balls", "city"), techniques=None, **kwargs) -> list[dict]:
@@ -103,15 +92,8 @@ def run(out_dir: str, scenes=("suzanne", "balls", "city"), techniques=None, **kw
                 f"refined {r['refined_ms']:8.1f} ms", flush=True), **kwargs)
     os.makedirs(out_dir, exist_ok=True)
     data = {"machine": platform.processor() or platform.machine(), "rows": rows}
-    tmp = os.path.join(out_dir, ".viewport.json.tmp")
-    with open(tmp, "w") as f:
-        json.dump(data, f, indent=2)
-    os.replace(tmp, os.path.join(out_dir, "viewport.json"))
-    table = markdown(rows)
-    tmp = os.path.join(out_dir, ".viewport.md.tmp")
-    with open(tmp, "w") as f:
-        f.write(table + "\n")
-    os.replace(tmp, os.path.join(out_dir, "viewport.md"))
+    write_atomic(os.path.join(out_dir, "viewport.json"), json.dumps(data, indent=2))
+    write_atomic(os.path.join(out_dir, "viewport.md"), markdown(rows) + "\n")
     return rows
 
 

@@ -8,39 +8,13 @@ bpy = pytest.importorskip("bpy")
 from penumbra.engine import pipeline, scenes  # noqa: E402
 from penumbra.engine.scene import extract  # noqa: E402
 from penumbra.engine.settings import RenderSettings  # noqa: E402
-from penumbra.engine.viewport import ViewportSession  # noqa: E402
-
-
-class Updates:
-    """Collects depsgraph.updates the way RenderEngine.view_update sees them."""
-
-    def __init__(self):
-        self.batches = []
-        bpy.app.handlers.depsgraph_update_post.append(self)
-
-    def __call__(self, scene, depsgraph):
-        self.batches.append([_Update(u) for u in depsgraph.updates])
-
-    def take(self):
-        bpy.context.view_layer.update()
-        out = [u for batch in self.batches for u in batch]
-        self.batches.clear()
-        return out
-
-    def close(self):
-        bpy.app.handlers.depsgraph_update_post.remove(self)
-
-
-class _Update:
-    def __init__(self, u):
-        self.id = u.id.original if hasattr(u.id, "original") else u.id
-        self.is_updated_geometry, self.is_updated_transform = u.is_updated_geometry, u.is_updated_transform
+from penumbra.engine.viewport import UpdateRecorder, ViewportSession  # noqa: E402
 
 
 @pytest.fixture()
 def balls():
     sc = scenes.build("balls", resolution=(96, 72))
-    updates = Updates()
+    updates = UpdateRecorder()
     yield sc, updates
     updates.close()
 

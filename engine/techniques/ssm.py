@@ -153,8 +153,7 @@ def casters_reach_receivers(light, world_to_local, half, is_ortho: bool, casters
     reaches the light plane."""
     def corners(box):
         lo, hi = (np.asarray(v, float) for v in box)
-        pts = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-        return (world_to_local @ np.c_[pts, np.ones(8)].T).T[:, :3]
+        return lightview.to_local(world_to_local, lightview.box_corners(lo, hi))
     c, r = corners(casters), corners(receivers)
     cd, rd = -c[:, 2], -r[:, 2]
     if cd.min() >= rd.max():
