@@ -242,7 +242,7 @@ def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bo
             seconds.append(timer.durations[0] if timer.durations else wall)
             if not os.path.exists(path):
                 raise RuntimeError(f"EEVEE wrote no image to {path}")
-            images.append(reference.read_exr_combined(path, view_layer.name))
+            images.append(reference.read_exr_combined(path))
         vis, mask = reference.visibility_from(images[0], images[1])
         return vis, mask, seconds[0], seconds[0] + seconds[1]
 

@@ -275,34 +275,14 @@ def _make_material():
     return mat
 
 
-def read_exr_combined(path: str, layer: str | None = None) -> np.ndarray:
-    """(H, W, 3) float32 RGB of the Combined pass in a (multi-part or single-part) EXR written by
-    Blender, row 0 = bottom (rows flipped from the file's top-down order)."""
-    import OpenEXR
-
-    with OpenEXR.File(str(path), separate_channels=True) as f:
-        parts = f.parts
-        chosen = None
-        for part in parts:
-            name = part.name() if callable(getattr(part, "name", None)) else getattr(part, "name", "")
-            name = name or ""
-            if name.endswith("Combined") and (layer is None or name.startswith(layer + ".")):
-                chosen = part
-                break
-        if chosen is None and len(parts) == 1:
-            chosen = parts[0]
-        if chosen is None:
-            names = [p.name() if callable(getattr(p, "name", None)) else p.name for p in parts]
-            raise RuntimeError(f"no Combined pass in {path} (parts: {names})")
-        chans = chosen.channels
-        rgb = []
-        for suffix in ("R", "G", "B"):
-            key = next((k for k in chans if k == suffix or k.endswith("." + suffix)), None)
-            if key is None:
-                raise RuntimeError(f"channel {suffix} missing in {path}: {list(chans)}")
-            rgb.append(np.asarray(chans[key].pixels, dtype=np.float32))
-    img = np.stack(rgb, axis=-1)
-    return np.ascontiguousarray(img[::-1])
+def read_exr_combined(path: str) -> np.ndarray:
+    """(H, W, 3) float32 RGB of the Combined pass in an EXR Blender wrote, row 0 = bottom. Measurement renders
+    write a single view layer (set_measurement_output), so the pass name alone identifies it."""
+    from .exr import read
+    passes = read(str(path))
+    if "Combined" not in passes:
+        raise RuntimeError(f"no Combined pass in {path} (passes: {sorted(passes)})")
+    return np.ascontiguousarray(passes["Combined"][..., :3])
 
 
 def set_measurement_output(st: "_Settings", scene, world, material, view_layer, width: int, height: int):
@@ -405,7 +385,7 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
             render_count += 1
             if not os.path.exists(path):
                 raise RuntimeError(f"Cycles wrote no image to {path}")
-            images.append(read_exr_combined(path, view_layer.name))
+            images.append(read_exr_combined(path))
         return images[0], images[1], seconds
 
 
