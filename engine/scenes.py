@@ -166,32 +166,15 @@ def _add_camera(scene, location, target, lens=35.0, up=(0.0, 0.0, 1.0)):
     return obj
 
 
-def _irradiance_per_watt(matrix: Matrix, size_x: float, size_y: float, point, normal, n: int = 96) -> float:
-    """Irradiance (W/m²) at `point` (surface `normal`) from an unoccluded rectangular AREA light of 1 W.
-
-    Blender's area light is a one-sided Lambertian emitter of radiance P / (pi * A) (checked against a
-    Cycles render of a small light: E = P / (pi d^2) straight below it). Integrated with an n x n midpoint
-    rule over the light's surface.
-    """
+def _irradiance_per_watt(matrix: Matrix, size_x: float, size_y: float, point, normal) -> float:
+    """Irradiance (W/m²) at `point` (surface `normal`) from an unoccluded rectangular AREA light of 1 W: the
+    analytic formula the renderer itself uses (engine/irradiance.py, checked against Cycles)."""
+    from .irradiance import irradiance
+    from .snapshot import AREA, RECTANGLE, Light
     m = np.array(matrix, dtype=float)
-    ax, ay, az = m[:3, 0], m[:3, 1], m[:3, 2]
-    ax = ax / np.linalg.norm(ax)
-    ay = ay / np.linalg.norm(ay)
-    emit = -az / np.linalg.norm(az)
-    centre = m[:3, 3]
-    u = ((np.arange(n) + 0.5) / n - 0.5) * size_x
-    v = ((np.arange(n) + 0.5) / n - 0.5) * size_y
-    uu, vv = np.meshgrid(u, v, indexing="ij")
-    q = centre + uu[..., None] * ax + vv[..., None] * ay          # (n, n, 3) points on the light
-    d = np.asarray(point, float) - q                               # light -> receiver
-    r2 = np.einsum("...i,...i", d, d)
-    r = np.sqrt(r2)
-    cos_l = np.clip(np.einsum("...i,i", d, emit) / r, 0.0, None)
-    cos_r = np.clip(-np.einsum("...i,i", d, np.asarray(normal, float)) / r, 0.0, None)
-    area = size_x * size_y
-    radiance_per_watt = 1.0 / (math.pi * area)
-    dA = area / (n * n)
-    return float(np.sum(radiance_per_watt * cos_l * cos_r / r2) * dA)
+    m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0)
+    light = Light("probe", AREA, m, np.ones(3), 1.0, RECTANGLE, float(size_x), float(size_y))
+    return float(irradiance(light, np.asarray([point], float), np.asarray([normal], float))[0, 0])
 
 
 def _add_area_light(scene, location, target, size, *, reference_point=(0.0, 0.0, 0.0),
