@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from penumbra.engine import pipeline
-from penumbra.engine.scene import extract
+from penumbra.engine.scene import extract, make_light
 from penumbra.engine.settings import RenderSettings
 
 bpy = pytest.importorskip("bpy")
@@ -160,29 +160,9 @@ def _pixel_geometry(cam, planes, w, h):
 
 
 def _light_from_object(ob) -> Light:
-    """The conventions measured here: area size scales with the object scale, point/spot radius does
-    not; power = energy · 2^exposure."""
-    ld = ob.data
-    m = np.array(ob.matrix_world)
-    scale = np.linalg.norm(m[:3, :3], axis=0)
-    rot = m.copy()
-    rot[:3, :3] = m[:3, :3] / scale
-    kw = dict(name=ob.name, kind=ld.type, matrix=rot, color=np.array(ld.color, np.float64),
-              power=ld.energy * 2.0 ** ld.exposure)
-    if ld.type == "AREA":
-        sy = ld.size_y if ld.shape in ("RECTANGLE", "ELLIPSE") else ld.size
-        kw.update(shape=ld.shape, size_x=ld.size * scale[0], size_y=sy * scale[1])
-    elif ld.type in ("POINT", "SPOT"):
-        kw.update(radius=ld.shadow_soft_size)
-        if ld.type == "SPOT":
-            kw.update(spot_size=ld.spot_size, spot_blend=ld.spot_blend, spot_scale=scale)
-    elif ld.type == "SUN":
-        kw.update(angle=ld.angle)
-    light = Light(**kw)
-    light.normalize = ld.normalize  # read with getattr by irradiance()
-    if ld.type in ("POINT", "SPOT"):
-        light.use_soft_falloff = ld.use_soft_falloff
-    return light
+    """The light as extraction reads it (engine/scene.make_light: area size scales with the object, point/spot
+    radius does not, power = energy · 2^exposure, Normalize off folded into the power)."""
+    return make_light(ob.name, ob.data, np.array(ob.matrix_world), lambda text: None)
 
 
 CASES = {
