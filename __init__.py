@@ -7,7 +7,7 @@ command line work without Blender's UI.
 
 def _modules():
     from . import operators, ui
-    from .engine import render_engine
+    from .engine.blender import render_engine
     return (ui, render_engine, operators)
 
 

@@ -6,31 +6,9 @@ import os
 import sys
 import time
 
-from .settings import RenderSettings
-
-
-class ProgressBar:
-    """A progress bar on stderr; on a terminal it redraws in place, otherwise it prints every 25%."""
-
-    def __init__(self, label: str, stream=None, width: int = 30):
-        self.label, self.stream, self.width = label, stream or sys.stderr, width
-        self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
-        self._last_quarter = -1
-
-    def __call__(self, fraction: float, message: str = "") -> None:
-        fraction = min(max(fraction, 0.0), 1.0)
-        filled = int(round(fraction * self.width))
-        line = f"{self.label} [{'#' * filled}{'.' * (self.width - filled)}] {fraction * 100:5.1f}% {message}"
-        if self.tty:
-            self.stream.write("\r" + line[:120].ljust(120))
-            self.stream.flush()
-        elif int(fraction * 4) > self._last_quarter:
-            self._last_quarter = int(fraction * 4)
-            self.stream.write(line + "\n")
-
-    def close(self) -> None:
-        if self.tty:
-            self.stream.write("\n")
+from .core.settings import RenderSettings
+from .measure.progress import ProgressBar
+from .measure.studies import STUDIES
 
 
 def _import_bpy():
@@ -70,7 +48,7 @@ def parse_overrides(pairs: list[str]) -> dict:
 def load_scene(args):
     """The bpy scene named by --scene (built in code) or FILE.blend."""
     bpy = _import_bpy()
-    from . import scenes
+    from .measure import scenes
     if args.blend:
         if not os.path.isfile(args.blend):
             raise SystemExit(f"penumbra: no such file '{args.blend}'")
@@ -87,7 +65,7 @@ def load_scene(args):
 
 
 def settings_for(scene, args) -> RenderSettings:
-    from ..ui.properties import settings_from_scene
+    from .blender.settings_bridge import settings_from_scene
     settings = settings_from_scene(scene)
     changes = parse_overrides(args.set)
     if args.technique:
@@ -108,8 +86,9 @@ def cmd_render(args) -> int:
     scene = load_scene(args)
     settings = settings_for(scene, args)
     import bpy
-    from . import exr, pipeline
-    from .scene import extract
+    from .core import exr
+    from .render import pipeline
+    from .blender.extract import extract
     t0 = time.perf_counter()
     try:
         snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
@@ -145,7 +124,7 @@ def cmd_render(args) -> int:
 def cmd_compare(args) -> int:
     scene = load_scene(args)
     settings = settings_for(scene, args)
-    from .compare import compare
+    from .measure.compare import compare
     bar = ProgressBar(f"{scene.name} {settings.technique}")
     try:
         cmp = compare(scene, settings, samples=args.cycles_samples, out_dir=args.out, repeats=args.repeats,
@@ -164,7 +143,7 @@ def cmd_compare(args) -> int:
 
 
 def cmd_stress(args) -> int:
-    from . import stress
+    from .measure import stress
     rows = stress.run(args.technique, args.case, parse_overrides(args.set),
                       progress=lambda line: print(line, file=sys.stderr, flush=True))
     print(stress.format_table(rows))
@@ -174,7 +153,7 @@ def cmd_stress(args) -> int:
 
 
 def cmd_scenes(args) -> int:
-    from .scenes import list_scenes
+    from .measure.scenes import list_scenes
     for name, description in list_scenes():
         print(f"{name:<12} {description}")
     return 0
@@ -195,18 +174,17 @@ def cmd_bench(args) -> int:
     _import_bpy()
     if args.study:
         # The paper studies: each study module has its own options; pass them after `--`.
-        module = {"ssm": "ssm_study", "backprojection": "backprojection_study"}[args.study]
-        import importlib
-        return importlib.import_module(f"penumbra.engine.{module}").main(["--out", args.out, *args.study_args])
+        from .measure import studies
+        return studies.run(args.study, ["--out", args.out, *args.study_args])
     if args.viewport:
-        from . import viewport_bench
+        from .measure import viewport_bench
         scenes = _csv_list(args.scenes) or ["suzanne", "balls", "city"]
         techniques = [t.upper() for t in _csv_list(args.techniques)] or None
         viewport_bench.run(args.out, scenes=scenes, techniques=techniques, size=tuple(args.viewport_size),
                            repeats=max(1, min(args.repeats, 5)))
         print(f"wrote {args.out}/viewport.{{json,md}}")
         return 0
-    from . import bench
+    from .measure import bench
     peers = [p.lower() for p in _csv_list(args.peers)]
     if peers in (["none"], ["off"]):
         peers = []
@@ -286,7 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="interactive latency instead: first and refined frame after a camera move, an object "
                         "move and a light edit (default scenes suzanne, balls, city)")
     b.add_argument("--viewport-size", type=int, nargs=2, metavar=("W", "H"), default=[1280, 720])
-    b.add_argument("--study", choices=("ssm", "backprojection"),
+    b.add_argument("--study", choices=tuple(STUDIES),
                    help="a paper's study instead: SSM's §4.2 curves (map size, light size, occluder position) "
                         "or the bitmask paper's Table 2/3 columns; further options after `--`")
     b.add_argument("study_args", nargs="*", help=argparse.SUPPRESS)

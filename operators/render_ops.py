@@ -12,9 +12,10 @@ class PENUMBRA_OT_export_exr(bpy.types.Operator):
     filepath: StringProperty(subtype="FILE_PATH", default="//penumbra.exr")
 
     def execute(self, context):
-        from ..engine import exr, pipeline
-        from ..engine.scene import extract
-        from ..ui.properties import settings_from_scene
+        from ..engine.core import exr
+        from ..engine.render import pipeline
+        from ..engine.blender.extract import extract
+        from ..engine.blender.settings_bridge import settings_from_scene
         try:
             snap = extract(context.evaluated_depsgraph_get(), context.scene)
             result = pipeline.render(snap, settings_from_scene(context.scene))
@@ -42,8 +43,8 @@ class PENUMBRA_OT_compare_cycles(bpy.types.Operator):
     samples: bpy.props.IntProperty(name="Cycles Samples", default=256, min=1, max=65536)
 
     def execute(self, context):
-        from ..engine.compare import compare
-        from ..ui.properties import settings_from_scene
+        from ..engine.measure.compare import compare
+        from ..engine.blender.settings_bridge import settings_from_scene
         wm = context.window_manager
         wm.progress_begin(0.0, 1.0)
         try:

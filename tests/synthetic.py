@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from penumbra.engine.snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapshot
-from penumbra.engine.stress import look_at, perspective
+from penumbra.engine.core.snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapshot
+from penumbra.engine.measure.stress import look_at, perspective
 
 
 def quad(center, half, normal_up=True):

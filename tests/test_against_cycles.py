@@ -4,9 +4,10 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from penumbra.engine import metrics, pipeline, reference, scenes  # noqa: E402
-from penumbra.engine.scene import extract  # noqa: E402
-from penumbra.engine.settings import RenderSettings  # noqa: E402
+from penumbra.engine.measure import metrics, reference, scenes  # noqa: E402
+from penumbra.engine.render import pipeline
+from penumbra.engine.blender.extract import extract  # noqa: E402
+from penumbra.engine.core.settings import RenderSettings  # noqa: E402
 
 
 def _scene(name, resolution, light_size=None):
@@ -51,7 +52,7 @@ def test_reference_technique_matches_cycles_within_its_noise(name):
 def test_unshadowed_light_matches_cycles_on_a_builtin_scene():
     """Our unoccluded light (Irradiance/π) against Cycles' unshadowed render with a white Lambertian
     override: within 2 % mean relative error over lit pixels."""
-    from penumbra.engine.compare import unshadowed_error
+    from penumbra.engine.measure.compare import unshadowed_error
     sc, snap = _scene("suzanne", (128, 128))
     ref = reference.cycles_visibility(sc, samples=256)
     r = pipeline.render(snap, RenderSettings(technique="HARD", debug_passes=True))

@@ -8,11 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from penumbra.engine import pipeline
-from penumbra.engine.settings import RenderSettings
-from penumbra.engine.snapshot import DISK, ELLIPSE, POINT, SPOT, SUN
+from penumbra.engine.render import pipeline
+from penumbra.engine.core.settings import RenderSettings
+from penumbra.engine.core.snapshot import DISK, ELLIPSE, POINT, SPOT, SUN
 from penumbra.engine.techniques import TECHNIQUES
-from penumbra.engine.techniques.backprojection import (ACCUMULATIONS, PRIMITIVES, REFINEMENTS,
+from penumbra.engine.techniques.backprojection import (ACCUMULATIONS, PRIMITIVES, REFINEMENTS, 
                                                        sample_positions, valid_mask)
 from penumbra.tests.synthetic import floating_plane
 from penumbra.tests.test_pipeline import _ground_depth, exact_area_visibility, ground_points
@@ -311,8 +311,8 @@ def test_debug_passes_are_present_and_sensible(plane):
 @pytest.fixture(scope="module")
 def cycles_scenes():
     bpy = pytest.importorskip("bpy")
-    from penumbra.engine import reference, scenes
-    from penumbra.engine.scene import extract
+    from penumbra.engine.measure import reference, scenes
+    from penumbra.engine.blender.extract import extract
     out = {}
     for name in ("balls", "silhouette", "suzanne"):
         sc = scenes.build(name, resolution=(128, 128))
@@ -322,7 +322,7 @@ def cycles_scenes():
 
 
 def _mae(cycles_scenes, name, **options):
-    from penumbra.engine import metrics
+    from penumbra.engine.measure import metrics
     snap, v_ref, mask = cycles_scenes[name]
     r, stats = render_stats(snap, bp(**options))
     m = metrics.compare(r.passes["Visibility"][..., 0], v_ref, mask)

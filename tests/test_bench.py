@@ -1,4 +1,4 @@
-"""engine.bench on one small scene: the outputs exist, hold the expected rows, and make sense (needs bpy;
+"""engine.measure.bench on one small scene: the outputs exist, hold the expected rows, and make sense (needs bpy;
 about 15 s: a 64-spp Cycles reference pair for two seeds at 48×48, two Cycles peers, two techniques)."""
 import csv
 import io
@@ -9,7 +9,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from penumbra.engine import bench  # noqa: E402
+from penumbra.engine.measure import bench  # noqa: E402
 
 TECHNIQUES = ["HARD", "PCSS"]
 

@@ -1,4 +1,4 @@
-"""engine/scene.py: Blender depsgraph -> SceneSnapshot. Scenes are built in code on an empty factory scene."""
+"""engine/blender/extract.py: Blender depsgraph -> SceneSnapshot. Scenes are built in code on an empty factory scene."""
 from __future__ import annotations
 
 import math
@@ -10,8 +10,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 from mathutils import Vector  # noqa: E402  (bpy must load first)
 
-from penumbra.engine import scene as scene_mod  # noqa: E402
-from penumbra.engine.snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SQUARE, SUN  # noqa: E402
+from penumbra.engine.blender import extract as scene_mod  # noqa: E402
+from penumbra.engine.core.snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SQUARE, SUN  # noqa: E402
 
 
 # ----------------------------------------------------------------------------------------------------------

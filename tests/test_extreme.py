@@ -1,7 +1,7 @@
-"""Numerical stability on stiff and extreme cases: every case of engine/stress.py × every technique.
+"""Numerical stability on stiff and extreme cases: every case of engine/measure/stress.py × every technique.
 
 Every pair must give finite Visibility in [0, 1] and finite Combined, and reach its case's limit. The limits
-and their tolerances live with the cases in engine/stress.py (one place, shared with the stress table), each
+and their tolerances live with the cases in engine/measure/stress.py (one place, shared with the stress table), each
 justified there in the comment above `CASES`; in short:
 
   oracle  class_err ≤ 0.02: fully occluded pixels stay dark and fully lit pixels stay lit (every technique);
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from penumbra.engine import stress
+from penumbra.engine.measure import stress
 from penumbra.engine.techniques import TECHNIQUES
 
 _BIAS_LEAK = ("default bias (1 texel + 1 texel normal offset ≈ 1e-3 m here) exceeds the 1e-4 m gap: light "

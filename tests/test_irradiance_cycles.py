@@ -1,4 +1,4 @@
-"""engine/irradiance.py against Cycles: unoccluded direct diffuse light, one light per case.
+"""engine/core/irradiance.py against Cycles: unoccluded direct diffuse light, one light per case.
 
 Each case builds a scene from code (factory settings, empty): a large ground plane plus a plane tilted
 by 45° whose plane passes through the light position (so the light straddles the receivers' horizon
@@ -23,15 +23,15 @@ import tempfile
 import numpy as np
 import pytest
 
-from penumbra.engine import pipeline
-from penumbra.engine.scene import extract, make_light
-from penumbra.engine.settings import RenderSettings
+from penumbra.engine.render import pipeline
+from penumbra.engine.blender.extract import extract, make_light
+from penumbra.engine.core.settings import RenderSettings
 
 bpy = pytest.importorskip("bpy")
 OpenEXR = pytest.importorskip("OpenEXR")
 
-from penumbra.engine.irradiance import irradiance  # noqa: E402
-from penumbra.engine.snapshot import Light  # noqa: E402
+from penumbra.engine.core.irradiance import irradiance  # noqa: E402
+from penumbra.engine.core.snapshot import Light  # noqa: E402
 
 W = H = 96
 SAMPLES = 256

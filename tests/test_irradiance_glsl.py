@@ -1,12 +1,12 @@
-"""The shader's analytic irradiance against engine/irradiance.py (which tests/test_irradiance_cycles.py
+"""The shader's analytic irradiance against engine/core/irradiance.py (which tests/test_irradiance_cycles.py
 checks against Cycles): every light kind and shape, receivers all around, straddling the horizon."""
 import numpy as np
 import pytest
 
-from penumbra.engine import irradiance
+from penumbra.engine.core import irradiance
 from penumbra.engine.gpu.context import GpuWorker
-from penumbra.engine.shading import irradiance_at
-from penumbra.engine.snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SQUARE, SUN, Light
+from penumbra.engine.gpu.probes import irradiance_at
+from penumbra.engine.core.snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SQUARE, SUN, Light
 
 
 def _matrix(rot_deg=(30.0, -20.0, 10.0), pos=(0.3, -0.2, 2.0)):

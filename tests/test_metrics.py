@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from penumbra.engine import metrics as M
+from penumbra.engine.measure import metrics as M
 
 
 def _field(n=4):
@@ -149,7 +149,7 @@ def test_flip_optional():
 
 
 def test_ssim_shaded_is_one_for_the_same_visibility_and_drops_with_a_wrong_one():
-    from penumbra.engine.metrics import ssim_shaded
+    from penumbra.engine.measure.metrics import ssim_shaded
     rng = np.random.default_rng(0)
     unshadowed = np.full((40, 40, 3), 0.6, np.float32) + rng.random((40, 40, 3), dtype=np.float32) * 0.01
     v = np.ones((40, 40), np.float32)

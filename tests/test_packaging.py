@@ -238,7 +238,7 @@ def test_python_wheel_layout_and_import(tmp_path):
     # Import from a neutral directory, with the installed copy first on the path (ahead of any editable
     # install of the checkout).
     env = dict(os.environ, PYTHONPATH=str(target))
-    code = ("import os, sys, penumbra, penumbra.engine.snapshot\n"
+    code = ("import os, sys, penumbra, penumbra.engine.core.snapshot\n"
             "print(os.path.dirname(penumbra.__file__))\n")
     proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=120)

@@ -3,9 +3,9 @@ geometry has a closed form."""
 import numpy as np
 import pytest
 
-from penumbra.engine import pipeline
+from penumbra.engine.render import pipeline
 from penumbra.engine.gpu import programs
-from penumbra.engine.settings import RenderSettings
+from penumbra.engine.core.settings import RenderSettings
 from penumbra.engine.techniques import TECHNIQUES
 
 from penumbra.tests.synthetic import floating_plane

@@ -1,4 +1,4 @@
-"""engine.reference: Cycles visibility on a small analytic scene (needs bpy; ~10-20 s).
+"""engine.measure.reference: Cycles visibility on a small analytic scene (needs bpy; ~10-20 s).
 
 Scene: ground plane z=0, a 1x1 occluder at (0.5, 0.5, 1) hidden from the camera (so the camera sees
 the shadow on the ground through it), a 1x1 square area light at (0, 0, 3) facing down, and an
@@ -9,8 +9,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from penumbra.engine import metrics as M  # noqa: E402
-from penumbra.engine import reference as R  # noqa: E402
+from penumbra.engine.measure import metrics as M  # noqa: E402
+from penumbra.engine.measure import reference as R  # noqa: E402
 
 RES = 64
 SPP = 64

@@ -9,17 +9,18 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 import penumbra  # noqa: E402
-from penumbra.engine import exr, passes, pipeline  # noqa: E402
+from penumbra.engine.core import exr, passes  # noqa: E402
+from penumbra.engine.render import pipeline
 from penumbra.engine.gpu.context import GpuError  # noqa: E402
-from penumbra.engine.scene import extract  # noqa: E402
-from penumbra.engine.settings import RenderSettings  # noqa: E402
+from penumbra.engine.blender.extract import extract  # noqa: E402
+from penumbra.engine.core.settings import RenderSettings  # noqa: E402
 
 
 @pytest.fixture()
 def scene():
     if not hasattr(bpy.types.Scene, "penumbra"):
         penumbra.register()
-    from penumbra.engine import scenes
+    from penumbra.engine.measure import scenes
     sc = scenes.build("plane", resolution=(48, 48))
     sc.render.engine = "PENUMBRA"
     return sc

@@ -6,7 +6,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from penumbra.engine import scenes  # noqa: E402
+from penumbra.engine.measure import scenes  # noqa: E402
 
 NAMES = list(scenes.SCENES)
 

@@ -2,7 +2,7 @@
 import pytest
 
 from penumbra.engine import techniques
-from penumbra.engine.settings import RenderSettings
+from penumbra.engine.core.settings import RenderSettings
 from penumbra.engine.techniques.base import Option, Technique
 
 

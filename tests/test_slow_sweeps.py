@@ -3,9 +3,10 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from penumbra.engine import metrics, pipeline, reference, scenes  # noqa: E402
-from penumbra.engine.scene import extract  # noqa: E402
-from penumbra.engine.settings import RenderSettings  # noqa: E402
+from penumbra.engine.measure import metrics, reference, scenes  # noqa: E402
+from penumbra.engine.render import pipeline
+from penumbra.engine.blender.extract import extract  # noqa: E402
+from penumbra.engine.core.settings import RenderSettings  # noqa: E402
 
 
 @pytest.mark.slow

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from penumbra.engine import pipeline
-from penumbra.engine.settings import RenderSettings
-from penumbra.engine.snapshot import ObjectInfo, SceneSnapshot
+from penumbra.engine.render import pipeline
+from penumbra.engine.core.settings import RenderSettings
+from penumbra.engine.core.snapshot import ObjectInfo, SceneSnapshot
 from penumbra.engine.techniques import ssm
 from penumbra.tests.synthetic import floating_plane, quad
 from penumbra.tests.test_pipeline import _ground_depth, exact_area_visibility, ground_points
@@ -184,7 +184,7 @@ def test_casters_far_from_the_visible_receivers_cost_nothing():
 
 def test_view_has_the_lights_aspect_ratio():
     """§3.2: occluder-map texels have the light's aspect ratio, the longer side gets the map size."""
-    from penumbra.engine.lightview import LightView
+    from penumbra.engine.core.lightview import LightView
     base = LightView(np.eye(4), np.eye(4), 10, 10, 0.1, 10.0, False, (-1.0, 1.0, -0.5, 0.5))
     v = ssm.ssm_view(base, (1.0, 0.5), 128)     # light twice as wide as tall
     tw, th = v.texel_size()
@@ -204,8 +204,8 @@ except Exception:   # pragma: no cover
 @pytest.mark.skipif(bpy is None, reason="needs bpy")
 def test_two_pass_is_not_worse_than_one_pass_on_suzanne():
     """§3.5 against Cycles (256 spp, cached; the reference shared with test_against_cycles)."""
-    from penumbra.engine import metrics, reference, scenes
-    from penumbra.engine.scene import extract
+    from penumbra.engine.measure import metrics, reference, scenes
+    from penumbra.engine.blender.extract import extract
     sc = scenes.build("suzanne", resolution=(128, 128))
     ref = reference.cycles_visibility(sc, samples=256)
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
@@ -222,8 +222,8 @@ def test_float32_beats_half_float_at_512_on_plane():
     """Appendix A on the `plane` scene at ssm_map_size 512 (the work budget lowers the map where the
     scatter would exceed it; both precisions get the same map): FP16 blending loses the small micro-patch
     contributions, float32 does not."""
-    from penumbra.engine import metrics, reference, scenes
-    from penumbra.engine.scene import extract
+    from penumbra.engine.measure import metrics, reference, scenes
+    from penumbra.engine.blender.extract import extract
     sc = scenes.build("plane", resolution=(64, 64))
     ref = reference.cycles_visibility(sc, samples=64)
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)

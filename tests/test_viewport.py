@@ -5,10 +5,11 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from penumbra.engine import pipeline, scenes  # noqa: E402
-from penumbra.engine.scene import extract  # noqa: E402
-from penumbra.engine.settings import RenderSettings  # noqa: E402
-from penumbra.engine.viewport import UpdateRecorder, ViewportSession  # noqa: E402
+from penumbra.engine.render import pipeline  # noqa: E402
+from penumbra.engine.measure import scenes
+from penumbra.engine.blender.extract import extract  # noqa: E402
+from penumbra.engine.core.settings import RenderSettings  # noqa: E402
+from penumbra.engine.blender.viewport_sync import BlenderViewport as ViewportSession, UpdateRecorder  # noqa: E402
 
 
 @pytest.fixture()
@@ -95,7 +96,7 @@ def test_progressive_then_full_and_stale_work_cancelled(balls):
 
 def test_coarse_frame_uses_each_techniques_cheap_mode_and_never_raises_quality():
     from penumbra.engine.techniques import TECHNIQUES
-    from penumbra.engine.viewport import coarse_settings
+    from penumbra.engine.render.viewport import coarse_settings
     for identifier, technique in TECHNIQUES.items():
         full = RenderSettings(technique=identifier, shadow_map_size=2048)
         coarse = coarse_settings(full, 256)

@@ -12,9 +12,11 @@ import penumbra  # noqa: E402
 import bpy  # noqa: E402
 
 penumbra.register()
-from penumbra.engine import exr, pipeline, scenes  # noqa: E402
-from penumbra.engine.scene import extract  # noqa: E402
-from penumbra.engine.settings import RenderSettings  # noqa: E402
+from penumbra.engine.core import exr  # noqa: E402
+from penumbra.engine.render import pipeline
+from penumbra.engine.measure import scenes
+from penumbra.engine.blender.extract import extract  # noqa: E402
+from penumbra.engine.core.settings import RenderSettings  # noqa: E402
 
 sc = scenes.build("suzanne", resolution=(256, 256))
 snap = extract(bpy.context.evaluated_depsgraph_get(), sc)

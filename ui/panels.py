@@ -37,7 +37,7 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         col = layout.column(align=True)
         col.prop(props, "bias")
         col.prop(props, "normal_offset")
-        from ..engine.techniques import TECHNIQUES
+        from ..engine.render.pipeline import TECHNIQUES
         technique = TECHNIQUES.get(props.technique)
         names = TECHNIQUE_SETTINGS.get(props.technique, ()) + tuple(o.name for o in technique.options)
         if names:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
-from ..engine.settings import RenderSettings
-from ..engine.techniques import TECHNIQUES
+from ..engine.core.settings import RenderSettings
+from ..engine.render.pipeline import TECHNIQUES
 
 _D = RenderSettings()   # defaults come from the dataclass, so the two never disagree
 
@@ -80,30 +80,6 @@ class PenumbraObjectSettings(bpy.types.PropertyGroup):
         ("CASTER", "Caster", "Only casts shadows (for techniques that split casters from receivers)"),
         ("RECEIVER", "Receiver", "Only receives shadows (for techniques that split casters from receivers)"),
     ])
-
-
-def settings_from_scene(scene) -> RenderSettings:
-    """RenderSettings from scene.penumbra (defaults where a field has no property)."""
-    props = getattr(scene, "penumbra", None)
-    if props is None:
-        return RenderSettings()
-    values = {name: getattr(props, name) for name in RenderSettings.field_names()
-              if name in props.bl_rna.properties}
-    extras = {opt.name: getattr(props, opt.name) for t in TECHNIQUES.values() for opt in t.options
-              if opt.name in props.bl_rna.properties}
-    return RenderSettings(**values, extras=extras)
-
-
-def viewport_settings(scene) -> RenderSettings:
-    """RenderSettings of the viewport's refined frame."""
-    settings = settings_from_scene(scene)
-    props = scene.penumbra
-    changes = {"shadow_map_size": props.viewport_map_size}
-    if props.viewport_technique != "SAME":
-        changes["technique"] = props.viewport_technique
-    if props.viewport_pass not in ("Combined", "Visibility", "Unshadowed"):
-        changes["debug_passes"] = True
-    return settings.with_(**changes)
 
 
 classes = (PenumbraSceneSettings, PenumbraObjectSettings)

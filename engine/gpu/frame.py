@@ -7,8 +7,8 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from ..lightview import LightView
-from ..snapshot import SceneSnapshot
+from ..core.lightview import LightView
+from ..core.snapshot import SceneSnapshot
 from .geometry import SceneGeometry, SoupGeometry
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
 

@@ -1,7 +1,7 @@
 """Scene geometry on the GPU, drawn through one interface whatever its layout.
 
 `SoupGeometry` (final renders) holds the snapshot's world-space triangle soup in one vertex buffer, with
-index buffers per role. The viewport's geometry (engine/viewport.py) keeps one object-space buffer per mesh
+index buffers per role. The viewport's geometry (engine/render/viewport.py) keeps one object-space buffer per mesh
 and draws instances with their model matrices, so moving an object uploads nothing. Shaders see the same
 attributes either way (position, normal, albedo: 9 floats per vertex) plus u_model / u_normal_matrix.
 """
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..snapshot import SceneSnapshot
+from ..core.snapshot import SceneSnapshot
 from .programs import set_uniforms
 
 VERTEX_FORMAT = "3f 3f 3f"

@@ -8,6 +8,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from ..core.matrices import mat_uniform  # noqa: F401  (re-exported: every program user packs matrices)
+
 GLSL_ROOT = Path(__file__).resolve().parents[2] / "glsl"
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 _VERSION = "#version 450 core\n"
@@ -82,12 +84,6 @@ def program(worker, vertex: str | None = None, fragment: str | None = None, comp
                           f"{message}") from None
     worker.cache[key] = prog
     return prog
-
-
-def mat_uniform(m) -> tuple:
-    """A numpy matrix as the column-major float tuple a GLSL mat3/mat4 uniform takes."""
-    import numpy as np
-    return tuple(np.asarray(m, dtype=np.float32).T.ravel())
 
 
 def set_uniforms(prog, values: dict) -> None:

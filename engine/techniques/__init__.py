@@ -1,4 +1,5 @@
 """Registry of shadow techniques: identifier → instance, in the order the UI lists them."""
+from ..core.options import CATALOGUE, known_options
 from .hard import Hard
 from .pcf import Pcf
 from .pcss import Pcss
@@ -6,12 +7,14 @@ from .averaged import AveragedMaps
 from .backprojection import Backprojection
 from .ssm import SoftShadowMaps
 
-TECHNIQUES = {t.identifier: t for t in (Hard(), Pcf(), Pcss(), AveragedMaps(), SoftShadowMaps(), Backprojection())}
+TECHNIQUES = CATALOGUE       # the core's catalogue is this registry itself
+TECHNIQUES.update((t.identifier, t) for t in (Hard(), Pcf(), Pcss(), AveragedMaps(), SoftShadowMaps(),
+                                               Backprojection()))
 
 
 def all_options() -> dict:
     """Every technique option by name."""
-    return {opt.name: opt for t in TECHNIQUES.values() for opt in t.options}
+    return known_options()
 
 
 def get(identifier: str):

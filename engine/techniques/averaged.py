@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import lightview
-from ..snapshot import AREA, DISK, ELLIPSE, SUN, Light
+from ..core import lightview
+from ..core.snapshot import AREA, DISK, ELLIPSE, SUN, Light
 from .base import MAP_SIZE_SWEEP, Technique
 
 

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from ..gpu.programs import program
-from ..snapshot import AREA, DISK, ELLIPSE, SUN
+from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
 from ..gpu.programs import mat_uniform, set_uniforms
 

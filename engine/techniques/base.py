@@ -9,10 +9,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..lightview import LightView
-from ..snapshot import Light
+from ..core.lightview import LightView
+from ..structures.depth_map import DEPTH_MAP  # noqa: F401  (the default need; techniques import it from here)
+from ..core.options import Option  # noqa: F401  (techniques declare their options with it)
+from ..core.snapshot import Light
 
-DEPTH_MAP = "depth_map"     # hard depth map of the casters from the light view's eye
 MAP_SIZE_SWEEP = tuple({"shadow_map_size": n} for n in (256, 512, 1024, 2048))
 
 
@@ -36,33 +37,6 @@ class LightContext:
     debug: dict = field(default_factory=dict)
 
 
-@dataclass(frozen=True)
-class Option:
-    """A setting a technique declares: becomes a scene.penumbra property, a `--set` name on the command line
-    and a RenderSettings.option() value. Prefix names with the technique (e.g. `bp_budget`)."""
-    name: str
-    default: Any                        # bool, int, float, or str for an enum
-    label: str
-    description: str = ""
-    min: float | None = None
-    max: float | None = None
-    items: tuple = ()                   # enum: ((identifier, label, description), …)
-
-    def check(self, value) -> None:
-        """Raise ValueError naming the option when `value` is not allowed."""
-        if self.items:
-            allowed = [i[0] for i in self.items]
-            if value not in allowed:
-                raise ValueError(f"Setting '{self.name}' = {value!r}: choose one of {', '.join(allowed)}")
-            return
-        if isinstance(self.default, bool):
-            if not isinstance(value, (bool, int)):
-                raise ValueError(f"Setting '{self.name}' expects true/false, got {value!r}")
-            return
-        if (self.min is not None and value < self.min) or (self.max is not None and value > self.max):
-            raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.min} … {self.max})")
-
-
 class Technique:
     identifier = ""
     label = ""
@@ -82,7 +56,7 @@ class Technique:
 def light_shape_uniforms(light: Light, view: LightView) -> dict:
     """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun) and whether it
     is round (disk, ellipse, sphere, sun) or rectangular: what filter kernels and samplers need."""
-    from ..snapshot import AREA, DISK, ELLIPSE, SUN
+    from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
     if light.kind == AREA:
         half = (light.size_x / 2.0, light.size_y / 2.0)
         round_ = light.shape in (DISK, ELLIPSE)

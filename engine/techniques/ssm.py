@@ -42,10 +42,10 @@ import math
 
 import numpy as np
 
-from .. import lightview
+from ..core import lightview
 from ..gpu.frame import NO_OCCLUDER
 from ..gpu.programs import program
-from ..lightview import LightView
+from ..core.lightview import LightView
 from .base import Option, Technique, light_shape_uniforms
 from ..gpu.programs import bind_samplers, mat_uniform, set_uniforms
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
+from .options import known_options, technique_identifiers
+
 
 @dataclass
 class RenderSettings:
@@ -41,9 +43,8 @@ class RenderSettings:
         """Value of a technique option (Technique.options), its default when unset."""
         if name in self.extras:
             return self.extras[name]
-        from .techniques import all_options
         try:
-            return all_options()[name].default
+            return known_options()[name].default
         except KeyError:
             raise KeyError(f"No technique declares an option '{name}'") from None
 
@@ -53,9 +54,9 @@ class RenderSettings:
 
     def validate(self) -> None:
         """Raise ValueError naming the setting when a value is out of its range."""
-        from .techniques import TECHNIQUES
-        if self.technique not in TECHNIQUES:
-            raise ValueError(f"Unknown technique '{self.technique}'; choose one of {', '.join(TECHNIQUES)}")
+        identifiers = technique_identifiers()
+        if self.technique not in identifiers:
+            raise ValueError(f"Unknown technique '{self.technique}'; choose one of {', '.join(identifiers)}")
         checks = [
             ("shadow_map_size", 16 <= self.shadow_map_size <= 16384, "16 … 16384"),
             ("reference_samples", 1 <= self.reference_samples <= 4096, "1 … 4096"),
@@ -70,8 +71,7 @@ class RenderSettings:
         for name, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"Setting '{name}' = {getattr(self, name)} is out of range ({allowed})")
-        from .techniques import all_options
-        options = all_options()
+        options = known_options()
         for name, value in self.extras.items():
             if name not in options:
                 raise ValueError(f"Unknown setting '{name}'")

@@ -1,5 +1,4 @@
-"""The interactive viewport: incremental scene sync, GPU-resident geometry, progressive and cancellable
-frames.
+"""The interactive viewport, renderer side: GPU-resident geometry and progressive, cancellable frames.
 
 Three parts, split by thread:
   ViewportScene    (Blender's main thread) reads the depsgraph; re-reads a mesh only when the depsgraph says
@@ -16,172 +15,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import lightview
-from .gpu.context import Cancelled, GpuWorker
-from .gpu.geometry import Draw, SceneGeometry, interleave
-from .settings import RenderSettings
-from .snapshot import Camera, ObjectInfo, SceneSnapshot
-
-
-# ---------------------------------------------------------------------------------------------------------
-# scene side (bpy)
-# ---------------------------------------------------------------------------------------------------------
-
-@dataclass
-class MeshPiece:
-    """One mesh in object space, ready to upload: positions/normals (T,3,3), albedo (T,3), local bounds."""
-    positions: np.ndarray
-    normals: np.ndarray
-    albedo: np.ndarray
-    version: int = 0
-
-    @property
-    def bounds(self) -> np.ndarray:
-        flat = self.positions.reshape(-1, 3)
-        return np.stack([flat.min(axis=0), flat.max(axis=0)]).astype(np.float64)
-
-
-@dataclass
-class Instance:
-    key: tuple                  # MeshPiece key
-    matrix: np.ndarray          # (4,4) object → world
-    object_index: int
-
-
-@dataclass
-class SceneState:
-    """What one viewport frame needs besides the GPU-resident meshes."""
-    pieces: dict                # key → MeshPiece (only the ones that changed since the last sync are new)
-    instances: list
-    objects: list
-    lights: list
-    warnings: list
-    name: str
-    version: int
-
-
-class ViewportScene:
-    """Incremental depsgraph reader. `sync(depsgraph, updates)` returns the new state and the keys whose
-    mesh data was (re)read; everything else is reused."""
-
-    def __init__(self):
-        self.pieces: dict[tuple, MeshPiece] = {}
-        self.version = 0
-        self.reads = 0          # meshes read from Blender since creation (tests count these)
-
-    def sync(self, depsgraph, updates=None) -> tuple[SceneState, set]:
-        """`updates`: depsgraph.updates of this change, or None to re-read every mesh."""
-        import bpy
-        from . import scene as extraction
-        dirty_objects, dirty_meshes, materials_changed = set(), set(), updates is None
-        for update in updates or ():
-            idb = update.id
-            if isinstance(idb, bpy.types.Object) and update.is_updated_geometry:
-                dirty_objects.add(idb.name)
-            elif isinstance(idb, bpy.types.Mesh):
-                dirty_meshes.add(idb.name)
-            elif isinstance(idb, (bpy.types.Material, bpy.types.NodeTree)):
-                materials_changed = True
-        warnings: list[str] = []
-        objects: list[ObjectInfo] = []
-        object_index: dict = {}
-        instances: list[Instance] = []
-        lights = []
-        seen: set = set()
-        changed: set = set()
-
-        for inst in depsgraph.object_instances:
-            ob = inst.object
-            if ob.type == "LIGHT":
-                lights.append(extraction.make_light(ob.name, ob.data, np.array(inst.matrix_world), warnings.append))
-                continue
-            if ob.type != "MESH" or (not inst.is_instance and not inst.show_self):
-                continue
-            parent = inst.parent if inst.is_instance else None
-            key = (ob.name, ob.data.name)
-            info = _object_info(ob, parent)
-            oid = object_index.setdefault(info, len(objects))
-            if oid == len(objects):
-                objects.append(ObjectInfo(*info))
-            if key not in seen:
-                seen.add(key)
-                stale = (key not in self.pieces or materials_changed or ob.name in dirty_objects
-                         or ob.data.name in dirty_meshes)
-                if stale:
-                    piece = _read_piece(ob, extraction, warnings)
-                    self.reads += 1
-                    if piece is None:
-                        self.pieces.pop(key, None)
-                    else:
-                        piece.version = self.version + 1
-                        self.pieces[key] = piece
-                    changed.add(key)
-            if key in self.pieces:
-                instances.append(Instance(key, np.array(inst.matrix_world, np.float64), oid))
-        for key in set(self.pieces) - seen:        # deleted objects
-            del self.pieces[key]
-            changed.add(key)
-        self.version += 1
-        state = SceneState(dict(self.pieces), instances, objects, lights, warnings, depsgraph.scene.name,
-                           self.version)
-        return state, changed
-
-
-def _object_info(ob, parent) -> tuple:
-    caster, receiver = bool(ob.visible_shadow), bool(ob.visible_camera)
-    role = str(getattr(getattr(ob, "penumbra", None), "role", "BOTH"))
-    if parent is not None and parent != ob:
-        caster = caster and bool(parent.visible_shadow)
-        receiver = receiver and bool(parent.visible_camera)
-    return (ob.name, caster, receiver, role)
-
-
-def _read_piece(ob, extraction, warnings) -> MeshPiece | None:
-    arrays = extraction.read_mesh(ob.data)
-    if arrays is None:
-        return None
-    colors = [extraction.material_albedo(slot.material, warnings.append) for slot in ob.material_slots]
-    table = np.array(colors or [extraction.GREY], np.float32).reshape(-1, 3)
-    albedo = table[np.clip(arrays.mat, 0, len(table) - 1)]
-    # The final render's clean-up, in object space: NaN/Inf and zero-area triangles dropped with a warning.
-    geometry = extraction.sanitize(dict(positions=arrays.pos, normals=arrays.nrm.copy(), albedo=albedo,
-                                         object_id=np.zeros(len(albedo), np.int32)),
-                                    [ObjectInfo(ob.name)], warnings)
-    if geometry["positions"].shape[0] == 0:
-        return None
-    return MeshPiece(np.ascontiguousarray(geometry["positions"]), np.ascontiguousarray(geometry["normals"]),
-                     np.ascontiguousarray(geometry["albedo"]))
-
-
-class UpdateRecorder:
-    """Collects depsgraph.updates outside a viewport (benchmark, tests), in the form view_update sees them:
-    a depsgraph_update_post handler while the recorder is open; `take()` applies pending edits and returns
-    the updates since the last call."""
-
-    class Update:
-        def __init__(self, u):
-            self.id = u.id.original if hasattr(u.id, "original") else u.id
-            self.is_updated_geometry = u.is_updated_geometry
-            self.is_updated_transform = u.is_updated_transform
-
-    def __init__(self):
-        import bpy
-        self._batch: list = []
-        bpy.app.handlers.depsgraph_update_post.append(self)
-
-    def __call__(self, scene, depsgraph):
-        self._batch.extend(self.Update(u) for u in depsgraph.updates)
-
-    def take(self) -> list:
-        import bpy
-        bpy.context.view_layer.update()
-        out, self._batch = self._batch, []
-        return out
-
-    def close(self) -> None:
-        import bpy
-        if self in bpy.app.handlers.depsgraph_update_post:
-            bpy.app.handlers.depsgraph_update_post.remove(self)
+from ..core import lightview
+from ..gpu.context import Cancelled, GpuWorker
+from ..gpu.geometry import Draw, SceneGeometry, interleave
+from ..core.settings import RenderSettings
+from ..core.snapshot import Camera, ObjectInfo, SceneSnapshot
+from ..core.viewport_state import Instance, MeshPiece, SceneState
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -254,7 +93,7 @@ class ViewportGeometry(SceneGeometry):
 def coarse_settings(settings: RenderSettings, map_size: int) -> RenderSettings:
     """The quick first frame after a change: a small map and the technique's own cheap mode
     (Technique.coarse)."""
-    from .techniques import get
+    from ..techniques import get
     changes = {"shadow_map_size": min(map_size, settings.shadow_map_size)}
     for name, value in get(settings.technique).coarse.items():
         current = getattr(settings, name) if name in settings.field_names() else settings.option(name)
@@ -280,7 +119,6 @@ class ViewportSession:
 
     def __init__(self, worker: GpuWorker | None = None):
         self.worker = worker or GpuWorker.get()
-        self.scene = ViewportScene()
         self.state: SceneState | None = None
         self._geometry: ViewportGeometry | None = None
         self._lock = threading.Lock()
@@ -292,17 +130,15 @@ class ViewportSession:
         self.error: str | None = None
 
     # -- scene ---------------------------------------------------------------------------------------------
-    def sync(self, depsgraph, updates=None) -> set:
-        """Read what changed (main thread), then hand the new meshes to the GPU thread without waiting:
-        frames of the old scene are cancelled, and the GPU thread applies the upload before any newer frame
-        (its queue is first in, first out). An upload error is kept in `error` for the next draw."""
-        state, changed = self.scene.sync(depsgraph, updates)
+    def apply_state(self, state: SceneState) -> None:
+        """Hand a new scene state to the GPU thread without waiting: frames of the old scene are cancelled,
+        and the GPU thread applies the upload before any newer frame (its queue is first in, first out). An
+        upload error is kept in `error` for the next draw."""
         self.state = state
         self._cancel_all()
         future = self.worker.submit(self._apply, state)
         future.add_done_callback(self._keep_error)
         self._last_key = None        # the scene changed: the next request renders even for the same view
-        return changed
 
     def _keep_error(self, future) -> None:
         if future.exception() is not None:
@@ -346,7 +182,7 @@ class ViewportSession:
             plans.append((replace(camera, width=w, height=h), coarse_settings(settings, coarse_map), True))
         plans.append((camera, settings, False))
         for cam, s, coarse in plans:
-            from .gpu.context import Job
+            from ..gpu.context import Job
             job = Job()
             self._jobs.append(job)
             self.worker.submit(self._render, job, request, cam, s, coarse)

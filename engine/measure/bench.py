@@ -35,9 +35,10 @@ from dataclasses import asdict
 
 import numpy as np
 
-from . import metrics, pipeline, reference
-from .files import write_atomic
-from .settings import RenderSettings
+from . import metrics, reference
+from ..render import pipeline
+from ..core.files import write_atomic
+from ..core.settings import RenderSettings
 
 DEFAULT_RESOLUTION = (128, 128)
 DEFAULT_REPEATS = 5
@@ -60,7 +61,7 @@ _SHORT = {"shadow_map_size": "map", "pcf_radius": "radius", "pcf_taps": "taps",
 
 def sweep_configs(identifier: str) -> list[dict]:
     """The configurations a --sweep runs for technique `identifier` (its declared `sweep`)."""
-    from .techniques import get as get_technique
+    from ..render.pipeline import get_technique
     return [dict(c) for c in get_technique(identifier).sweep]
 
 
@@ -285,7 +286,7 @@ def machine_info() -> dict:
         pass
     info["numpy"] = np.__version__
     try:
-        from .gpu.context import GpuWorker
+        from ..render.pipeline import GpuWorker
         gl = GpuWorker.get().submit(lambda w: {k: w.ctx.info.get(k) for k in
                                                ("GL_RENDERER", "GL_VENDOR", "GL_VERSION")}).result()
         info["gl_renderer"], info["gl_vendor"], info["gl_version"] = (gl["GL_RENDERER"], gl["GL_VENDOR"],
@@ -331,9 +332,9 @@ def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, pee
     import bpy
 
     from . import scenes as scene_lib
-    from .cli import ProgressBar
-    from .scene import extract
-    from .techniques import TECHNIQUES
+    from .progress import ProgressBar
+    from ..blender.extract import extract
+    from ..render.pipeline import TECHNIQUES
 
     stream = stream or sys.stderr
     scene_names = list(scenes) if scenes else [name for name, _ in scene_lib.list_scenes()]

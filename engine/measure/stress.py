@@ -29,8 +29,8 @@ from typing import Callable
 
 import numpy as np
 
-from .settings import RenderSettings
-from .snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapshot
+from ..core.settings import RenderSettings
+from ..core.snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapshot
 
 # Techniques that by design ignore the light's size (a hard map, a fixed-size filter): a soft-shadow accuracy
 # limit (mae against the oracle) does not apply to them; the classification limit (umbra stays dark, fully
@@ -334,7 +334,7 @@ def _bpy_mesh(bpy, sc, name, verts, faces):
 
 
 def _extract(bpy, sc, name):
-    from .scene import extract
+    from ..blender.extract import extract
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
     snap.name = name
     return snap
@@ -561,7 +561,7 @@ class Runner:
         return self._snaps[key]
 
     def render(self, key: str, snap: SceneSnapshot, settings: RenderSettings):
-        from . import pipeline
+        from ..render import pipeline
         k = (key, repr(settings))
         if k not in self._renders:
             t0 = time.perf_counter()
@@ -693,7 +693,7 @@ def _without(snap: SceneSnapshot, name: str) -> SceneSnapshot:
 
 def run(techniques=None, cases=None, settings_overrides: dict | None = None, *, progress=None) -> list[dict]:
     """Every case × technique. `techniques`/`cases`: names (default all); `progress(text)` per case."""
-    from .techniques import TECHNIQUES
+    from ..render.pipeline import TECHNIQUES
     techniques = list(techniques or TECHNIQUES)
     cases = [CASE_BY_NAME[c] if isinstance(c, str) else c for c in (cases or CASES)]
     runner = Runner(settings_overrides)
@@ -732,11 +732,4 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
-    """Same as `python -m penumbra stress`."""
-    from .cli import main as cli_main
-    return cli_main(["stress", *(argv if argv is not None else sys.argv[1:])])
 
-
-if __name__ == "__main__":
-    sys.exit(main())

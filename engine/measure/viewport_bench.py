@@ -11,8 +11,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from .settings import RenderSettings
-from .files import write_atomic
+from ..core.settings import RenderSettings
+from ..core.files import write_atomic
 
 EVENTS = ("camera", "object", "light")
 
@@ -32,8 +32,8 @@ def measure(scene_name: str, technique: str, *, size=(1280, 720), coarse_map=256
             map_size=1024, repeats=3, on_progress=None) -> list[dict]:
     import bpy
     from . import scenes
-    from .scene import extract
-    from .viewport import UpdateRecorder, ViewportSession
+    from ..blender.extract import extract
+    from ..blender.viewport_sync import BlenderViewport as ViewportSession, UpdateRecorder
     sc = scenes.build(scene_name, resolution=size)
     updates = UpdateRecorder()
     try:
@@ -82,7 +82,7 @@ def measure(scene_name: str, technique: str, *, size=(1280, 720), coarse_map=256
 
 
 def run(out_dir: str, scenes=("suzanne", "balls", "city"), techniques=None, **kwargs) -> list[dict]:
-    from .techniques import TECHNIQUES
+    from ..render.pipeline import TECHNIQUES
     techniques = techniques or list(TECHNIQUES)
     rows = []
     for name in scenes:

@@ -1,7 +1,7 @@
 """The studies of Atty et al. 2006 §4.2 (and §5.2's timings) for the SSM technique, on our scenes against the
 Cycles reference.
 
-    python -m penumbra.engine.ssm_study --out DIR [--scenes plane suzanne] [--size 128] [--samples 64]
+    python -m penumbra bench --study ssm --out DIR -- [--scenes plane suzanne] [--size 128] [--samples 64]
 
 For each scene, one-pass and two-pass SSM (float32 accumulation) are compared with Cycles (mae_shadow:
 mean |V − V_ref| over shadow and penumbra pixels, the paper's normalisation, §4.2.1) while one parameter
@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .files import write_atomic
+from ...core.files import write_atomic
 
 MAP_SIZES = (64, 96, 128, 192, 256, 384, 512)
 LIGHT_FRACTIONS = (0.01, 0.1, 0.25, 0.5, 0.75, 1.0)    # × the occluder's width
@@ -48,7 +48,7 @@ def _world_bounds(obj):
 def _variant(name: str, size: int, *, light_fraction=None, lateral=None, vertical=None):
     """Build scene `name` and apply one change; returns (scene, parameter value actually set)."""
     import bpy
-    from . import scenes
+    from .. import scenes
     sc = scenes.build(name, resolution=(size, size))
     occ = sc.objects[OCCLUDER[name]]
     light = sc.objects[scenes.LIGHT_NAME]
@@ -75,8 +75,9 @@ def _variant(name: str, size: int, *, light_fraction=None, lateral=None, vertica
 def _measure(sc, settings_list, samples: int, repeats: int):
     """Cycles reference once, then every settings: (metrics, SSM ms, total ms, stats) per settings."""
     import bpy
-    from . import metrics, pipeline, reference
-    from .scene import extract
+    from .. import metrics, reference
+    from ...render import pipeline
+    from ...blender.extract import extract
     ref = reference.cycles_visibility(sc, samples=samples)
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
     rows = []
@@ -99,7 +100,7 @@ def _measure(sc, settings_list, samples: int, repeats: int):
 def run(out: Path, scene_names=("plane", "suzanne"), size: int = 128, samples: int = 64, repeats: int = 1,
         map_sizes=MAP_SIZES, light_fractions=LIGHT_FRACTIONS, lateral=LATERAL, vertical=VERTICAL,
         log=print) -> dict:
-    from .settings import RenderSettings
+    from ...core.settings import RenderSettings
     base = RenderSettings(technique="SSM").with_(ssm_budget=1.0e5, ssm_precision="FLOAT32")
     results = {"size": size, "samples": samples, "scenes": list(scene_names), "studies": {}}
     studies = results["studies"]
@@ -198,7 +199,7 @@ def markdown(results: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m penumbra.engine.ssm_study", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m penumbra bench --study ssm", description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True, type=Path)
     ap.add_argument("--scenes", nargs="+", default=["plane", "suzanne"], choices=sorted(OCCLUDER))
     ap.add_argument("--size", type=int, default=128, help="image pixels per side")

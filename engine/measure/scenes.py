@@ -168,9 +168,9 @@ def _add_camera(scene, location, target, lens=35.0, up=(0.0, 0.0, 1.0)):
 
 def _irradiance_per_watt(matrix: Matrix, size_x: float, size_y: float, point, normal) -> float:
     """Irradiance (W/m²) at `point` (surface `normal`) from an unoccluded rectangular AREA light of 1 W: the
-    analytic formula the renderer itself uses (engine/irradiance.py, checked against Cycles)."""
-    from .irradiance import irradiance
-    from .snapshot import AREA, RECTANGLE, Light
+    analytic formula the renderer itself uses (engine/core/irradiance.py, checked against Cycles)."""
+    from ..core.irradiance import irradiance
+    from ..core.snapshot import AREA, RECTANGLE, Light
     m = np.array(matrix, dtype=float)
     m[:3, :3] /= np.linalg.norm(m[:3, :3], axis=0)
     light = Light("probe", AREA, m, np.ones(3), 1.0, RECTANGLE, float(size_x), float(size_y))

@@ -2,7 +2,7 @@
 
 All images are (H, W) float arrays of visibility V in [0, 1] (1 = fully lit, 0 = umbra) plus a boolean
 mask of the pixels where the reference is meaningful (the surface receives light at all; see
-`engine.reference`). Row order does not matter here as long as all inputs share it.
+`engine.measure.reference`). Row order does not matter here as long as all inputs share it.
 
 `compare` is the main entry point. `ssim` and `flip` are optional perceptual metrics on RGB images;
 `flip` needs the `flip-evaluator` package and raises ImportError without it (`HAVE_FLIP` tells).

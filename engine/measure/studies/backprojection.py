@@ -6,7 +6,7 @@ the hierarchy level used, and the error against the Cycles reference (mae_shadow
 HSM/MSSM build times per map size (Table 2) and the default setting's frame time at 512² output with a
 1024² map, with HARD's time and Cycles' time at equal error, close the report.
 
-    python -m penumbra.engine.backprojection_study --out DIR [--scenes balls,silhouette,suzanne]
+    python -m penumbra bench --study backprojection --out DIR -- [--scenes balls,silhouette,suzanne]
         [--size 128] [--map 1024] [--repeats 3] [--samples 256] [--no-perf] [--quick]
 
 Writes DIR/backprojection_study.md (and .json) atomically.
@@ -21,9 +21,10 @@ import time
 
 import numpy as np
 
-from . import metrics, pipeline, reference
-from .files import write_atomic
-from .settings import RenderSettings
+from .. import metrics, reference
+from ...render import pipeline
+from ...core.files import write_atomic
+from ...core.settings import RenderSettings
 
 DEFAULT = {"bp_accumulation": "BITMASK_16J", "bp_primitive": "MICROPATCH", "bp_refinement": "MSSM", "bp_budget": 16}
 
@@ -75,8 +76,8 @@ def bp_stats(snap, settings):
 
 def study_scene(name: str, size: int, map_size: int, repeats: int, samples: int, quick: bool, log) -> dict:
     import bpy
-    from . import scenes
-    from .scene import extract
+    from .. import scenes
+    from ...blender.extract import extract
     sc = scenes.build(name, resolution=(size, size))
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
     ref = reference.cycles_visibility(sc, samples=samples)
@@ -105,8 +106,8 @@ def study_scene(name: str, size: int, map_size: int, repeats: int, samples: int,
 def build_times(sizes=(256, 512, 1024, 2048), repeats: int = 3, log=print) -> list[dict]:
     """Table 2: HSM and MSSM construction time per depth-map size (a suzanne map; timing stages)."""
     import bpy
-    from . import scenes
-    from .scene import extract
+    from .. import scenes
+    from ...blender.extract import extract
     sc = scenes.build("suzanne", resolution=(64, 64))
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
     out = []
@@ -127,8 +128,8 @@ def perf(scene_name: str = "suzanne", size: int = 512, map_size: int = 1024, rep
     """The default setting at 512² output with a 1024² map: its frame time, HARD's, and the time of the
     cheapest Cycles render whose mae_shadow is no worse (equal error)."""
     import bpy
-    from . import scenes
-    from .scene import extract
+    from .. import scenes
+    from ...blender.extract import extract
     sc = scenes.build(scene_name, resolution=(size, size))
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
     ref = reference.cycles_visibility(sc, samples=ref_samples)
@@ -194,7 +195,7 @@ def markdown(results: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m penumbra.engine.backprojection_study",
+    ap = argparse.ArgumentParser(prog="python -m penumbra bench --study backprojection",
                                  description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True)
     ap.add_argument("--scenes", default="balls,silhouette,suzanne")

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import bpy
 
-from . import passes, pipeline
-from .gpu.context import Cancelled, GpuError
-from .gpu.programs import ShaderError
-from .scene import extract
+from ..core import passes
+from ..render import pipeline
+from ..gpu.context import Cancelled, GpuError
+from ..gpu.programs import ShaderError
+from .extract import extract
 
 
 def _settings(scene):
-    from ..ui.properties import settings_from_scene
+    from .settings_bridge import settings_from_scene
     return settings_from_scene(scene)
 
 
@@ -83,10 +84,10 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
     # ---- interactive viewport -------------------------------------------------------------------------
     def view_update(self, context, depsgraph):
         """Scene changed: re-read only what the depsgraph reports (the first call reads everything)."""
-        from .viewport import ViewportSession
+        from .viewport_sync import BlenderViewport
         try:
             if self._viewport is None:
-                self._viewport = ViewportSession()
+                self._viewport = BlenderViewport()
                 self._viewport.sync(depsgraph)
             else:
                 self._viewport.sync(depsgraph, depsgraph.updates)
@@ -96,8 +97,8 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
     def view_draw(self, context, depsgraph):
         """Draw the newest finished frame; ask for a new one when the view changed. Never waits for the GPU."""
         import numpy as np
-        from ..ui.properties import viewport_settings
-        from .snapshot import Camera
+        from .settings_bridge import viewport_settings
+        from ..core.snapshot import Camera
         session = self._viewport
         if session is None:
             return

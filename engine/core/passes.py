@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Iterator
 
+from .options import technique_debug_passes
+
 # name, channels, channel ids, Blender pass type
 BASE_PASSES = (
     ("Combined", 4, "RGBA", "COLOR"),
@@ -20,7 +22,4 @@ def render_passes(settings) -> Iterator[tuple[str, int, str, str]]:
     yield from BASE_PASSES
     if getattr(settings, "debug_passes", False):
         yield from DEBUG_PASSES
-        from .techniques import TECHNIQUES
-        technique = TECHNIQUES.get(getattr(settings, "technique", ""))
-        if technique is not None:
-            yield from technique.debug_passes
+        yield from technique_debug_passes(getattr(settings, "technique", ""))

@@ -278,7 +278,7 @@ def _make_material():
 def read_exr_combined(path: str) -> np.ndarray:
     """(H, W, 3) float32 RGB of the Combined pass in an EXR Blender wrote, row 0 = bottom. Measurement renders
     write a single view layer (set_measurement_output), so the pass name alone identifies it."""
-    from .exr import read
+    from ..core.exr import read
     passes = read(str(path))
     if "Combined" not in passes:
         raise RuntimeError(f"no Combined pass in {path} (passes: {sorted(passes)})")

@@ -10,9 +10,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import exr, metrics, pipeline, reference
-from .files import write_atomic
-from .settings import RenderSettings
+from ..core import exr
+from . import metrics, reference
+from ..render import pipeline
+from ..core.files import write_atomic
+from ..core.settings import RenderSettings
 
 
 @dataclass
@@ -41,7 +43,7 @@ def compare(scene, settings: RenderSettings, *, samples: int = 256, with_noise_f
             out_dir: str | None = None, repeats: int = 1, on_progress=None) -> Comparison:
     """Render `scene` (a bpy scene) with Penumbra and Cycles and measure the difference."""
     import bpy
-    from .scene import extract
+    from ..blender.extract import extract
     snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
     settings = settings.with_(debug_passes=True)       # the Irradiance pass checks our Unshadowed light
     result = pipeline.render(snap, settings, on_progress=on_progress)     # first frame compiles shaders

@@ -1,6 +1,6 @@
 """The scene as the GPU side sees it: numpy arrays and small dataclasses, no bpy, no GL.
 
-`engine/scene.py` fills these from a Blender depsgraph; the built-in test scenes and the tests may also
+`engine/blender/extract.py` fills these from a Blender depsgraph; the built-in test scenes and the tests may also
 build them directly. Everything is in world space, metres, right-handed, Z up (Blender's convention).
 """
 from __future__ import annotations

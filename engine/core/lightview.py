@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .snapshot import AREA, POINT, SPOT, SUN, Light
-from .gpu.programs import mat_uniform
+from .matrices import mat_uniform
 
 MAX_HALF_ANGLE = np.radians(80.0)   # a single perspective map cannot cover a hemisphere; beyond this it clamps
 

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from .snapshot import AREA, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Camera, Light, ObjectInfo, SceneSnapshot
+from ..core.snapshot import AREA, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Camera, Light, ObjectInfo, SceneSnapshot
 
 GREY = (0.8, 0.8, 0.8)
 # A triangle is dropped when its area is below this fraction of the squared scene diagonal.

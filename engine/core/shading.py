@@ -1,7 +1,7 @@
 """Light → uniforms of glsl/shading/irradiance.glsl.
 
 Blender's power conventions (checked against Cycles in tests/test_irradiance_cycles.py, the numpy twin is
-engine/irradiance.py):
+engine/core/irradiance.py):
   area light, power P [W] over area A:   radiance L = P / (π·A)             (all of P leaves the front side)
   sphere light, power P, radius r:       radiance L = P / (4π·r² · π)        (intensity P/(4π) W/sr);
                                          with soft falloff (Blender's default) it emits from a disk of
@@ -73,24 +73,3 @@ def _light_values(light: Light) -> dict:
         u.update(u_spot_cos_half=cos_half, u_spot_smooth=float((1.0 - cos_half) * light.spot_blend),
                  u_spot_to_local=tuple(to_local.T.ravel()))
     return u
-
-
-def irradiance_at(worker, light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """The shader's unoccluded irradiance at arbitrary points (N, 3) → (N, 3); runs on the GPU thread.
-    Used to check glsl/shading/irradiance.glsl against engine/irradiance.py."""
-    from .gpu.programs import program, set_uniforms
-    ctx = worker.ctx
-    n = len(points)
-    pad = lambda a: np.c_[np.asarray(a, np.float32), np.zeros(n, np.float32)].tobytes()
-    bufs = [ctx.buffer(pad(points)), ctx.buffer(pad(normals)), ctx.buffer(reserve=16 * max(n, 1))]
-    try:
-        prog = program(worker, compute="shading/irradiance_points.comp", defines=light_defines(light))
-        set_uniforms(prog, {**light_uniforms(light), "u_count": n})
-        for binding, buf in enumerate(bufs):
-            buf.bind_to_storage_buffer(binding)
-        prog.run((n + 63) // 64)
-        ctx.finish()
-        return np.frombuffer(bufs[2].read(), np.float32).reshape(-1, 4)[:n, :3].astype(np.float64)
-    finally:
-        for buf in bufs:
-            buf.release()

@@ -11,15 +11,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import lightview, passes
-from .gpu.context import GpuWorker, Job
-from .gpu.frame import Frame
-from .gpu.geometry import SceneGeometry
-from .settings import RenderSettings
-from .shading import light_defines, light_uniforms
-from .snapshot import SceneSnapshot
-from .techniques import get as get_technique
-from .techniques.base import DEPTH_MAP, LightContext
+from ..core import lightview, passes
+from ..gpu.context import GpuWorker, Job
+from ..gpu.frame import Frame
+from ..gpu.geometry import SceneGeometry
+from ..core.settings import RenderSettings
+from ..core.shading import light_defines, light_uniforms
+from ..core.snapshot import SceneSnapshot
+from ..techniques import TECHNIQUES, get as get_technique  # noqa: F401  (TECHNIQUES: the layers above list them here)
+from .. import structures
+from ..techniques.base import LightContext
 
 BACKGROUND_DEPTH = 1.0e10   # Blender's Depth pass value where nothing was hit
 
@@ -126,9 +127,9 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                                 "its shadow map are treated as lit.")
             lc = LightContext(light, view, irradiance, receivers, casters,
                               {**view.uniforms(), **frame.bias_uniforms})
-            if DEPTH_MAP in technique.needs:
+            for need in technique.needs:     # only what the technique declares, once per light view
                 with t.stage("shadow_map"):
-                    lc.structures[DEPTH_MAP] = frame.render_depth_map(view)
+                    lc.structures[need] = structures.build(need, frame, lc)
             with t.stage("visibility"):
                 technique.visibility(frame, lc, visibility)
             if lc.stats:

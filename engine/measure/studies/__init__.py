@@ -1,0 +1,16 @@
+"""Paper studies, one module per paper: `python -m penumbra bench --study NAME --out DIR [-- options]`.
+Each module has a `main(argv)` with its own options."""
+from __future__ import annotations
+
+import importlib
+
+STUDIES = {
+    "backprojection": "Schwarz & Stamminger 2007, bitmask soft shadows: Tables 2/3 columns",
+    "ssm": "Atty et al. 2006, soft shadow maps: map size, precision, timing (§4.2, §5.2.3)",
+}
+
+
+def run(name: str, argv: list[str]) -> int:
+    if name not in STUDIES:
+        raise ValueError(f"Unknown study '{name}'; choose one of {', '.join(STUDIES)}")
+    return importlib.import_module(f"{__name__}.{name}").main(argv)
