@@ -28,6 +28,11 @@ class LightView:
     is_ortho: bool
     window: tuple           # (x0, x1, y0, y1): tangent window at unit depth (perspective) or world (ortho)
     clamped: bool = False   # the receivers needed more than MAX_HALF_ANGLE and some fall outside
+    # A face of a light seen through several views: `frame` is the light's own world→local matrix and `face`
+    # the rotation (3×3) from that frame to this view's, whose -Z looks along the face. None for a light's
+    # single view (its frame is `view`).
+    frame: np.ndarray | None = None
+    face: np.ndarray | None = None
 
     @property
     def view_proj(self) -> np.ndarray:
@@ -85,23 +90,32 @@ def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 
 def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[np.ndarray, np.ndarray] | None,
-        map_size: int, *, origin_local: np.ndarray | None = None, margin: float = 0.02) -> LightView:
+        map_size: int, *, origin_local: np.ndarray | None = None, margin: float = 0.02,
+        frame: np.ndarray | None = None, face: np.ndarray | None = None) -> LightView:
     """Fit a light view to the receiver bounds (world AABB lo, hi) and the caster bounds.
 
     The window is the part of the receivers a caster can shadow (the casters' window widened by how far the
     light's extent reaches past them), plus the occluders those receivers can see the light through. Both
     are measured in window units: tangents from the eye (perspective) or metres (sun). `origin_local` moves
     the eye to a point of the light (a REFERENCE sample); the frame keeps its axes and the light has no
-    extent left around that eye.
+    extent left around that eye. `frame` (the light's world→local matrix) and `face` (a rotation from it, see
+    `split_faces`) make the view one face of a light seen through several views.
     """
     r_lo, r_hi = (np.asarray(v, float) for v in receivers)
-    world_to_local = light_frame(light, (r_lo + r_hi) / 2.0)
-    half = np.max(np.abs(light_extent_local(light)[:, :2]), axis=0)
+    light_to_world = light_frame(light, (r_lo + r_hi) / 2.0) if frame is None else np.asarray(frame, float)
+    world_to_local = light_to_world
+    extent = light_extent_local(light)
     if origin_local is not None:
         shift = np.eye(4)
         shift[:3, 3] = -np.asarray(origin_local, float)
         world_to_local = shift @ world_to_local
-        half = np.zeros(2)
+        extent = np.zeros((1, 3))
+    if face is not None:
+        turn = np.eye(4)
+        turn[:3, :3] = face
+        world_to_local = turn @ world_to_local
+        extent = extent @ np.asarray(face, float).T
+    half = np.max(np.abs(extent[:, :2]), axis=0)
     if casters is None:
         casters = receivers
     c_lo, c_hi = (np.asarray(v, float) for v in casters)
@@ -147,7 +161,57 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     width, height = _map_shape(window, map_size)
     proj = ortho(window, near, far) if is_sun else frustum(window, near, far)
     return LightView(world_to_local, proj, width, height, float(near), float(far), is_sun,
-                     tuple(float(v) for v in window), clamped)
+                     tuple(float(v) for v in window), clamped,
+                     frame=None if face is None else light_to_world, face=None if face is None else np.asarray(face))
+
+
+# The six faces of a cube around the light, as directions in the light's frame. Index = 2·axis + (positive).
+CUBE_FACES = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]], float)
+
+
+def face_rotation(direction) -> np.ndarray:
+    """Rotation (3×3) from the light's frame to a view whose -Z looks along `direction` (a unit axis)."""
+    forward = np.asarray(direction, float)
+    z = -forward
+    x = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = x - z * np.dot(x, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z])         # rows: the view's axes in the light's frame
+
+
+def outside_view(view: LightView, points: np.ndarray) -> np.ndarray:
+    """Which world points (N, 3) fall outside the view's map (behind the eye or past the window)."""
+    local = to_local(view.view, points)
+    x0, x1, y0, y1 = view.window
+    if view.is_ortho:
+        w = local[:, :2]
+        behind = np.zeros(len(points), bool)
+    else:
+        depth = -local[:, 2]
+        behind = depth <= 0.0
+        w = local[:, :2] / np.where(behind, 1.0, depth)[:, None]
+    return behind | (w[:, 0] < x0) | (w[:, 0] > x1) | (w[:, 1] < y0) | (w[:, 1] > y1)
+
+
+def split_faces(view: LightView, points: np.ndarray) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
+    """When a light's single view had to be clamped and some lit points (N, 3, world) fall outside it: the views
+    that hold them all, as
+    [(rotation from the light's frame, or None for the single view itself; mask of the points it owns)].
+    The single view keeps every point it holds; the others go to the cube faces around the light by the
+    dominant axis of their direction from it (each at most 45° off its face's axis), only faces that own a
+    point. None when the view was not clamped (its window holds every receiver a caster can shadow, so a
+    point outside it is lit for certain), when it holds every point, and for orthographic views."""
+    if view.is_ortho or not view.clamped or len(points) == 0:
+        return None
+    outside = outside_view(view, points)
+    if not outside.any():
+        return None
+    local = to_local(view.view, points)
+    axis = np.argmax(np.abs(local), axis=1)
+    index = np.where(outside, 2 * axis + (local[np.arange(len(local)), axis] > 0), -1)
+    return [(None, ~outside)] * bool((~outside).any()) + [
+        (face_rotation(CUBE_FACES[i]), index == i) for i in range(6) if (index == i).any()]
 
 
 def to_local(world_to_local: np.ndarray, pts: np.ndarray) -> np.ndarray:

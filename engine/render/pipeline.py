@@ -97,7 +97,6 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         frame.warn(f"Scene '{snap.name}' has no shadow casters: every light is unshadowed.")
 
     for index, light in enumerate(snap.lights):
-        lc = None
         frame.progress.index = index
         frame.progress.step(0.0, f"{light.name}: irradiance")
         frame.progress.check()
@@ -115,29 +114,21 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         casters = None
         if light.casts_shadow and has_casters:
             casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers)
+        rgb = None
         if casters is None:
             visibility.write(ones)              # nothing can shadow what this light reaches
             stats["lights_unshadowed"] += 1
         else:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
-            if view.clamped:
-                frame.warn(f"Light '{light.name}': visible receivers span more than "
-                                f"{2 * np.degrees(lightview.MAX_HALF_ANGLE):.0f}° from the light; pixels outside "
-                                "its shadow map are treated as lit.")
-            lc = LightContext(light, view, irradiance, receivers, casters,
-                              {**view.uniforms(), **frame.bias_uniforms})
-            for need in technique.needs:     # only what the technique declares, once per light view
-                with t.stage("shadow_map"):
-                    lc.structures[need] = structures.build(need, frame, lc)
-            with t.stage("visibility"):
-                technique.visibility(frame, lc, visibility)
-            if lc.stats:
-                stats.setdefault("per_light", []).append({"light": light.name, **lc.stats})
-            for name, array in lc.debug.items():    # several lights: keep the per-pixel maximum
-                debug[name] = array if name not in debug else np.maximum(debug[name], array)
+                faces = lightview.split_faces(view, position[lit][:, :3])
+            if faces is None:
+                rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
+                                       stats, debug)
+            else:
+                rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, position,
+                                       irradiance, object_bounds, caster_objects, visibility, stats, debug)
         with t.stage("accumulate"):
-            rgb = lc.visibility_rgb if lc is not None else None
             frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
                            samplers={"g_irradiance": irradiance, "u_visibility": visibility,
                                      "u_visibility_rgb": rgb if rgb is not None else visibility},
@@ -149,6 +140,78 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     for name, value in frame.stats.items():
         stats[name] = stats.get(name, 0) + value
     return FrameResult(out, dict(t), frame.warnings, stats)
+
+
+def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
+                     debug: dict):
+    """One light view: build the structures the technique declares, then its visibility into `out`. Returns
+    the technique's coloured visibility texture, if it made one."""
+    t = frame.timings
+    lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms})
+    for need in technique.needs:     # only what the technique declares, once per light view
+        with t.stage("shadow_map"):
+            lc.structures[need] = structures.build(need, frame, lc)
+    with t.stage("visibility"):
+        technique.visibility(frame, lc, out)
+    stats["views"] = stats.get("views", 0) + 1
+    if lc.stats:
+        stats.setdefault("per_light", []).append({"light": light.name, **lc.stats})
+    for name, array in lc.debug.items():    # several lights or views: keep the per-pixel maximum
+        debug[name] = array if name not in debug else np.maximum(debug[name], array)
+    return lc.visibility_rgb
+
+
+def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, faces, lit, position,
+                     irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
+    """A light whose lit pixels do not fit one view: its single view for the pixels it holds, and one view per
+    cube face for the rest (see lightview.split_faces), each fitted to the receivers it owns, with its own
+    structures; every pixel takes the visibility of the view that owns it, so none is left outside every map."""
+    t = frame.timings
+    size = (frame.width, frame.height)
+    owner = np.full(lit.shape, -1.0, np.float32)
+    owner_tex, face_out = frame.texture(size, 1), frame.texture(size, 1)
+    merged_rgb, rgb_seen = frame.texture(size, 4), False
+    face_debug: dict = {}
+    lit_xyz = position[lit][:, :3]
+    lit_index = np.flatnonzero(lit.ravel())          # the order of position[lit], which the masks follow
+    for index, (_, mask) in enumerate(faces):
+        owner.reshape(-1)[lit_index[mask]] = index
+    owner_tex.write(owner.tobytes())
+    for index, (rotation, mask) in enumerate(faces):
+        pts = lit_xyz[mask].astype(np.float64)
+        rgb, casters = None, None
+        if rotation is None:                    # the light's single view keeps the pixels it holds
+            receivers, casters, face_view = view_receivers, view_casters, view
+        else:
+            receivers = (pts.min(axis=0), pts.max(axis=0))
+            if light.casts_shadow and frame.geometry.has_casters:
+                casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers)
+        if rotation is not None and casters is not None:
+            with t.stage("light_view"):
+                face_view = lightview.fit(light, receivers, casters, frame.settings.shadow_map_size,
+                                          frame=view.view, face=rotation)
+        if casters is not None:
+            if rotation is not None and lightview.outside_view(face_view, pts).any():
+                frame.warn(f"Light '{light.name}': some pixels fall outside its cube-face views "
+                           "(please report this scene).")
+            view_debug: dict = {}
+            rgb = _view_visibility(frame, technique, light, face_view, irradiance, receivers, casters, face_out,
+                                   stats, view_debug)
+            owned = owner == index
+            for name, array in view_debug.items():      # debug passes too come from the owning view
+                merged = face_debug.setdefault(name, np.zeros_like(array))
+                merged[owned] = array[owned]
+        rgb_seen |= rgb is not None
+        with t.stage("visibility"):
+            frame.dispatch("render/merge_view.comp", {"u_face": index, "u_unshadowed": int(casters is None),
+                                                      "u_has_rgb": int(rgb is not None)},
+                           samplers={"u_owner": owner_tex, "u_view_visibility": face_out,
+                                     "u_view_rgb": rgb if rgb is not None else face_out},
+                           images={0: out, 1: merged_rgb})
+    for name, array in face_debug.items():
+        debug[name] = array if name not in debug else np.maximum(debug[name], array)
+    stats["lights_split"] = stats.get("lights_split", 0) + 1
+    return merged_rgb if rgb_seen else None
 
 
 def _finish(frame: Frame, combined, unshadowed, sums, irradiance_sum, covered, debug: dict) -> dict:

@@ -83,7 +83,9 @@ class AveragedMaps(Technique):
                 sample_world = light.position
             else:
                 local = np.array([offset[0], offset[1], 0.0])
-                view = lightview.fit(light, lc.receivers, lc.casters, s.shadow_map_size, origin_local=local)
+                # A cube face keeps its turn: every sample's map looks the way the face looks.
+                view = lightview.fit(light, lc.receivers, lc.casters, s.shadow_map_size, origin_local=local,
+                                     frame=lc.view.frame, face=lc.view.face)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
             with frame.timings.stage("shadow_map"):
                 depth = frame.render_depth_map(view)

@@ -60,6 +60,13 @@ def light_shape_uniforms(light: Light, view: LightView) -> dict:
     if light.kind == AREA:
         half = (light.size_x / 2.0, light.size_y / 2.0)
         round_ = light.shape in (DISK, ELLIPSE)
+        if view.face is not None:
+            # A side face of the light's cube of views sees the light at an angle: its extent projected onto
+            # the face's plane (kept above 5 % of the light's size, so kernels built on it never collapse).
+            import numpy as np
+            corners = np.array([[sx * half[0], sy * half[1], 0.0] for sx in (-1, 1) for sy in (-1, 1)])
+            projected = np.max(np.abs(corners @ np.asarray(view.face, float).T)[:, :2], axis=0)
+            half = tuple(float(v) for v in np.maximum(projected, 0.05 * max(half)))
     elif light.kind == SUN:
         import math
         t = math.tan(light.angle / 2.0)

@@ -62,14 +62,22 @@ float receiver_depth_at(Receiver r, vec2 map_pos) {
     vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
     float np = dot(r.normal, r.local);
     float z = r.map.z;
+    // The eye (light centre) above the receiver's plane and this texel's ray meeting the plane in front:
+    // everything on the ray past the plane lies below the receiver's tangent plane, and no point there can
+    // stand between the receiver and any part of the light above that plane (the only part that lights
+    // it). So the plane's depth is a hard upper limit there, however close to the eye it comes.
+    bool eye_above = false;
     if (u_light_ortho == 1) {
         if (abs(r.normal.z) > 1e-4) z = (r.normal.x * w.x + r.normal.y * w.y - np) / r.normal.z;
+        eye_above = r.normal.z > 1e-4;
     } else {
         float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
         if (abs(den) > 1e-6 && np / den > 0.0) z = np / den;
+        eye_above = np < 0.0 && den < -1e-6;     // 1e-6: den is a tangent-space dot product, unitless
     }
-    // Far from the centre a steep plane can run away: never trust it beyond twice the centre's distance.
-    z = clamp(z, 0.5 * r.map.z, 2.0 * r.map.z);
+    // Far from the centre a steep plane can run away: never trust it beyond twice the centre's distance,
+    // nor (where the eye is below the plane or the ray misses it) nearer than half of it.
+    z = eye_above ? min(z, 2.0 * r.map.z) : clamp(z, 0.5 * r.map.z, 2.0 * r.map.z);
     return z - r.bias;
 }
 
