@@ -73,7 +73,7 @@ def settings_for(scene, args) -> RenderSettings:
     if args.map_size:
         changes["shadow_map_size"] = args.map_size
     if args.samples:
-        changes["reference_samples"] = args.samples
+        changes["averaged_light_samples"] = args.samples
     settings = settings.with_(**changes)
     try:
         settings.validate()

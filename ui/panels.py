@@ -5,14 +5,6 @@ import bpy
 
 ENGINE = "PENUMBRA"
 
-# Which settings each technique reads, in the order the panel shows them.
-TECHNIQUE_SETTINGS = {
-    "HARD": (),
-    "PCF": ("pcf_radius", "pcf_taps"),
-    "PCSS": ("pcss_blocker_samples", "pcss_filter_samples", "pcss_max_radius"),
-    "REFERENCE": ("reference_samples", "reference_weighted", "seed"),
-}
-
 
 class PenumbraPanel:
     bl_space_type = "PROPERTIES"
@@ -39,9 +31,10 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         col.prop(props, "normal_offset")
         from ..engine.render.pipeline import TECHNIQUES
         technique = TECHNIQUES.get(props.technique)
-        names = TECHNIQUE_SETTINGS.get(props.technique, ()) + tuple(o.name for o in technique.options)
+        # Every technique's settings come from its Option list (and the shared ones it reads).
+        names = tuple(o.name for o in technique.options) + tuple(technique.reads_shared)
         if names:
-            box = layout.column(heading=props.technique.title())
+            box = layout.column(heading=technique.label)
             for name in names:
                 box.prop(props, name)
         layout.prop(props, "debug_passes")

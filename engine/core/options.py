@@ -21,6 +21,20 @@ class Option:
     min: float | None = None
     max: float | None = None
     items: tuple = ()                   # enum: ((identifier, label, description), …)
+    soft_min: float | None = None       # slider range in Blender's UI (within min … max)
+    soft_max: float | None = None
+
+    def allowed(self) -> str:
+        """The allowed values in words, as messages and help print them."""
+        if self.items:
+            return "one of " + ", ".join(i[0] for i in self.items)
+        if isinstance(self.default, bool):
+            return "true/false"
+        lo = "" if self.min is None else _num(self.min)
+        hi = "" if self.max is None else _num(self.max)
+        if lo and hi:
+            return f"{lo} … {hi}"
+        return f"≥ {lo}" if lo else (f"≤ {hi}" if hi else "any number")
 
     def check(self, value) -> None:
         """Raise ValueError naming the option when `value` is not allowed."""
@@ -34,7 +48,11 @@ class Option:
                 raise ValueError(f"Setting '{self.name}' expects true/false, got {value!r}")
             return
         if (self.min is not None and value < self.min) or (self.max is not None and value > self.max):
-            raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.min} … {self.max})")
+            raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.allowed()})")
+
+
+def _num(x) -> str:
+    return str(int(x)) if float(x).is_integer() else str(x)
 
 
 # identifier -> technique object (anything with `identifier`, `options` and `debug_passes`), in the order the
@@ -49,6 +67,11 @@ def known_options() -> dict[str, Option]:
 
 def technique_identifiers() -> list[str]:
     return list(CATALOGUE)
+
+
+def technique_options(identifier: str) -> tuple:
+    technique = CATALOGUE.get(identifier)
+    return tuple(technique.options) if technique is not None else ()
 
 
 def technique_debug_passes(identifier: str) -> tuple:

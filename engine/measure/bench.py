@@ -31,7 +31,6 @@ import subprocess
 import sys
 import time
 from contextlib import contextmanager
-from dataclasses import asdict
 
 import numpy as np
 
@@ -56,7 +55,7 @@ METRIC_KEYS = ("mae_shadow", "mae", "rmse", "max_abs", "pixel_match", "ssim_shad
 STAGES = ("upload", "gbuffer", "readback", "irradiance", "light_view", "shadow_map", "visibility", "accumulate")
 
 _SHORT = {"shadow_map_size": "map", "pcf_radius": "radius", "pcf_taps": "taps",
-          "pcss_blocker_samples": "blocker", "pcss_filter_samples": "filter", "reference_samples": "samples"}
+          "pcss_blocker_samples": "blocker", "pcss_filter_samples": "filter", "averaged_light_samples": "samples"}
 
 
 def sweep_configs(identifier: str) -> list[dict]:
@@ -90,7 +89,7 @@ def configurations(identifier: str, base: RenderSettings, sweep: bool) -> list[t
     for changes in (sweep_configs(identifier) if sweep else [{}]):
         settings = base.with_(technique=identifier, **changes)
         settings.validate()
-        key = json.dumps(asdict(settings), sort_keys=True, default=str)
+        key = json.dumps(settings.effective(), sort_keys=True, default=str)
         if key not in seen:
             seen.add(key)
             out.append((config_label(changes), changes, settings))
@@ -415,7 +414,7 @@ def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, pee
                 v = result.passes["Visibility"][..., 0]
                 entry["rows"].append({
                     "kind": "ours", "technique": tid, "config": label, "changes": changes,
-                    "settings": asdict(settings), "repeats": len(timing["times_ms"]), **timing,
+                    "settings": settings.effective(), "repeats": len(timing["times_ms"]), **timing,
                     "metrics": {**metrics.compare(v, ref.visibility, ref.mask),
                                 "ssim_shaded": metrics.ssim_shaded(result.passes["Combined"],
                                                                    result.passes["Unshadowed"], ref.visibility)},

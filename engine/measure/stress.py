@@ -37,7 +37,7 @@ from ..core.snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapsh
 # lit stays lit) and all finiteness limits do.
 IGNORES_LIGHT_SIZE = frozenset({"HARD", "PCF"})
 
-BASE_SETTINGS = dict(shadow_map_size=1024, reference_samples=32)
+BASE_SETTINGS = dict(shadow_map_size=1024, averaged_light_samples=32)
 SHADOW_LEVEL = 0.99             # V below this: shadow or penumbra (where the error metrics look)
 IMAGE = 64                      # pixels per side of every case's image
 
