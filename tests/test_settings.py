@@ -52,7 +52,8 @@ def test_technique_settings_are_options_of_their_technique():
     assert declared["PCSS"] == {"pcss_blocker_samples", "pcss_filter_samples", "pcss_max_radius"}
     assert declared["REFERENCE"] == {"averaged_light_samples", "averaged_weighted"}
     # RenderSettings keeps only what every technique shares.
-    assert set(RenderSettings.field_names()) == {o.name for o in SHARED} | {"technique", "collect_stats", "extras"}
+    shared = {o.name for o in SHARED}
+    assert set(RenderSettings.field_names()) == shared | {"technique", "collect_stats", "extras"}
     s = RenderSettings()
     assert (s.option("pcf_radius"), s.option("pcf_taps")) == (2.0, 5)
     assert (s.option("pcss_blocker_samples"), s.option("pcss_filter_samples"), s.option("pcss_max_radius")) \

@@ -30,11 +30,7 @@ class Option:
             return "one of " + ", ".join(i[0] for i in self.items)
         if isinstance(self.default, bool):
             return "true/false"
-        lo = "" if self.min is None else _num(self.min)
-        hi = "" if self.max is None else _num(self.max)
-        if lo and hi:
-            return f"{lo} … {hi}"
-        return f"≥ {lo}" if lo else (f"≤ {hi}" if hi else "any number")
+        return range_text(self.min, self.max)
 
     def check(self, value) -> None:
         """Raise ValueError naming the option when `value` is not allowed."""
@@ -51,8 +47,15 @@ class Option:
             raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.allowed()})")
 
 
-def _num(x) -> str:
-    return str(int(x)) if float(x).is_integer() else str(x)
+def range_text(lo=None, hi=None) -> str:
+    """'lo … hi', '≥ lo' or '≤ hi', numbers written without a needless '.0'."""
+    def num(x):
+        return str(int(x)) if float(x).is_integer() else str(x)
+    if lo is not None and hi is not None:
+        return f"{num(lo)} … {num(hi)}"
+    if lo is not None:
+        return f"≥ {num(lo)}"
+    return f"≤ {num(hi)}" if hi is not None else "any number"
 
 
 # identifier -> technique object (anything with `identifier`, `options` and `debug_passes`), in the order the

@@ -23,7 +23,8 @@ class Pcss(Technique):
         s = frame.settings
         frame.dispatch("pcss/visibility.comp", {
             **lc.uniforms, **light_shape_uniforms(lc.light, lc.view),
-            "u_blocker_samples": int(s.option("pcss_blocker_samples")), "u_filter_samples": int(s.option("pcss_filter_samples")),
+            "u_blocker_samples": int(s.option("pcss_blocker_samples")),
+            "u_filter_samples": int(s.option("pcss_filter_samples")),
             "u_max_radius": float(s.option("pcss_max_radius")) * max(lc.view.width, lc.view.height)},
             samplers={"g_irradiance": lc.irradiance, "u_depth_map": lc.structures["depth_map"]},
             images={0: out})
