@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 from .core.arguments import CYCLES_SAMPLES_RANGE, RESOLUTION_RANGE, Parser, add_alias, option_type, ranged
-from .core.settings import RENAMED, SHARED, RenderSettings
+from .core.settings import RENAMED, SHARED, RenderSettings, setting_option, setting_options
 from .measure.progress import ProgressBar
 from .measure.studies import STUDIES
 
@@ -47,11 +47,10 @@ _TRUE, _FALSE = ("1", "true", "yes", "on"), ("0", "false", "no", "off")
 
 def parse_overrides(pairs: list[str]) -> dict:
     """`--set name=value` pairs, typed like the setting they name and checked against its range."""
-    from .techniques import TECHNIQUES, all_options
+    from .techniques import TECHNIQUES
     defaults = RenderSettings()
-    options = {o.name: o for o in SHARED} | all_options()
-    names = [n for n in RenderSettings.field_names() if n != "extras"] + [n for n in options if n not in SHARED]
-    names = list(dict.fromkeys(names))
+    options = {o.name: o for o in setting_options()}
+    names = list(dict.fromkeys([n for n in RenderSettings.field_names() if n != "extras"] + list(options)))
     out = {}
     for pair in pairs or []:
         name, sep, raw = pair.partition("=")
@@ -253,8 +252,11 @@ class _Help(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpF
     """Defaults after each flag's help (none where there is nothing to show); the epilog as written."""
 
     def _get_help_string(self, action):
-        if action.default in (None, False) or not action.help:
-            return action.help
+        text, default = action.help, action.default
+        if not text or default is None or default is False or default == "" or "(default" in text:
+            return text
+        if isinstance(default, (list, tuple)):         # nargs=2 flags: "128 128", as typed
+            return f"{text} (default: {' '.join(map(str, default))})"
         return super()._get_help_string(action)
 
 
@@ -275,7 +277,7 @@ def settings_epilog() -> str:
             yield from textwrap.wrap(opt.description, 104, initial_indent=" " * 6, subsequent_indent=" " * 6)
 
     lines = ["settings: --set NAME=VALUE (repeatable) sets any of these, each shown with its default and its",
-             "allowed values (a .blend's own values replace the defaults)",
+             "allowed values (a .blend file's own values replace the defaults)",
              f"  technique = {RenderSettings().technique}   (one of {', '.join(TECHNIQUES)}; --technique)",
              "shared by every technique:", *rows(SHARED)]
     for technique in TECHNIQUES.values():
@@ -293,10 +295,9 @@ def _common_render_args(p) -> None:
     p.add_argument("--resolution", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
                    help=f"image size in pixels, each {RESOLUTION_RANGE[0]} … {RESOLUTION_RANGE[1]} "
                         "(default: the .blend's, 256 256 for a built-in scene)")
-    p.add_argument("--map-size", type=option_type(SHARED[0]),
-                   help=f"shadow-map size in texels, {SHARED[0].allowed()} (default: the scene's setting)")
-    from .techniques.averaged import AveragedMaps
-    samples = next(o for o in AveragedMaps.options if o.name == "averaged_light_samples")
+    map_size, samples = setting_option("shadow_map_size"), setting_option("averaged_light_samples")
+    p.add_argument("--map-size", type=option_type(map_size),
+                   help=f"shadow-map size in texels, {map_size.allowed()} (default: the scene's setting)")
     add_alias(p, "--samples", p.add_argument(
         "--light-samples", type=option_type(samples),
         help=f"hard shadow maps averaged per light by REFERENCE, {samples.allowed()} (default: the scene's)"))

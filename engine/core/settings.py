@@ -93,3 +93,11 @@ class RenderSettings:
 def setting_options() -> list[Option]:
     """Every setting a user can set (shared, then each technique's), as Options."""
     return list(SHARED) + list(known_options().values())
+
+
+def setting_option(name: str) -> Option:
+    """The Option of a shared or a technique's setting."""
+    try:
+        return next(o for o in setting_options() if o.name == name)
+    except StopIteration:
+        raise KeyError(f"No setting '{name}'") from None
