@@ -136,3 +136,41 @@ def test_a_file_saved_with_old_setting_names_loads_with_their_values(tmp_path):
     assert "reference_samples" not in store.keys() and "reference_weighted" not in store.keys()
     from penumbra.engine.blender.settings_bridge import settings_from_scene
     assert settings_from_scene(bpy.context.scene).option("averaged_light_samples") == 200
+
+
+class _Layout:
+    """Records what a panel draws (layout.prop names), standing in for Blender's UILayout."""
+
+    def __init__(self, drawn):
+        self.drawn, self.use_property_split = drawn, False
+
+    def prop(self, data, name, **_):
+        assert name in data.bl_rna.properties, name      # every drawn name is a real property
+        self.drawn.append(name)
+
+    def column(self, **_):
+        return self
+
+    row = column
+
+    def operator(self, *_, **__):
+        pass
+
+    def label(self, **_):
+        pass
+
+
+def test_the_panel_draws_each_techniques_options_from_its_option_list():
+    bpy = _registered_bpy()
+    from penumbra.ui.panels import RENDER_PT_penumbra
+    sc = bpy.context.scene
+    for technique in techniques.TECHNIQUES.values():
+        sc.penumbra.technique = technique.identifier
+        drawn = []
+        panel = type("Panel", (), {"layout": _Layout(drawn)})()
+        RENDER_PT_penumbra.draw(panel, type("Context", (), {"scene": sc})())
+        own = [o.name for o in technique.options] + list(technique.reads_shared)
+        assert [n for n in drawn if n in own] == own, technique.identifier
+        others = {o.name for t in techniques.TECHNIQUES.values() if t is not technique for o in t.options}
+        assert not others & set(drawn), technique.identifier
+    assert techniques.TECHNIQUES["REFERENCE"].reads_shared == ("seed",)     # drawn beside its options
