@@ -162,6 +162,7 @@ def cmd_compare(args) -> int:
     from .core.files import OutputError
     from .measure.compare import compare, write_outputs
     bar = ProgressBar(f"{scene.name} {settings.technique}")
+    _interrupt_cycles_on_sigint()
     try:
         cmp = compare(scene, settings, samples=args.cycles_samples, repeats=args.repeats,
                       with_noise_floor=not args.no_noise_floor, on_progress=bar)
@@ -184,6 +185,19 @@ def cmd_compare(args) -> int:
             return 2
         print("wrote " + ", ".join(paths))
     return 0
+
+
+def _interrupt_cycles_on_sigint() -> None:
+    """Ctrl-C during a Cycles render: Blender swallows the KeyboardInterrupt raised inside Cycles' Python
+    callback, so the flag the reference checks after every render is set as well."""
+    import signal
+    from .measure import reference
+    reference.interrupted.clear()
+
+    def on_sigint(signum, frame):
+        reference.interrupted.set()
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGINT, on_sigint)
 
 
 def cmd_stress(args) -> int:

@@ -8,6 +8,7 @@ import shutil
 import stat
 import subprocess
 import sys
+import tempfile
 
 import numpy as np
 import pytest
@@ -374,3 +375,126 @@ def test_readme_extension_build_runs_in_a_fresh_copy(tmp_path):
     proc = subprocess.run(["sh", "-c", command], cwd=src, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0 and "FATAL" not in proc.stdout + proc.stderr, proc.stdout + proc.stderr
     assert len(list((src / "dist").glob("penumbra-*.zip"))) == 1
+
+
+# ---- item 1 and item 2 (operators): Compare with Cycles in Blender ------------------------------------------
+
+@pytest.fixture()
+def saved_scene(monkeypatch, tmp_path):
+    bpy = pytest.importorskip("bpy")
+    import penumbra
+    if not hasattr(bpy.types.Scene, "penumbra"):
+        penumbra.register()
+    monkeypatch.setenv("PENUMBRA_CACHE", str(tmp_path / "cache"))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    from penumbra.engine.measure import scenes
+    sc = scenes.build("plane", resolution=(400, 300))
+    return bpy, sc
+
+
+def test_compare_operator_preview_shows_the_result_in_blender(saved_scene, tmp_path):
+    bpy, sc = saved_scene
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    sc = bpy.data.scenes[sc.name]
+    sc.penumbra.technique = "PCSS"
+    assert bpy.ops.penumbra.compare_cycles(preview=True, samples=256) == {"FINISHED"}
+    folder = tmp_path / "penumbra_compare"                  # derived from the .blend
+    data = _strict_json(folder / "plane_pcss.json")
+    assert data["resolution"] == [256, 192] and data["reference_samples"] == 32 and data["noise_floor"] is None
+    assert "256×192 (scene 400×300)" in data["preview"] and "32 Cycles spp (asked 256)" in data["preview"]
+    assert (sc.render.resolution_x, sc.render.resolution_y) == (400, 300)      # the scene is restored
+    state = sc.penumbra_compare
+    assert not state.running and state.status == "done"
+    assert state.mae_shadow == pytest.approx(data["metrics"]["mae_shadow"], abs=1e-6)
+    assert state.n_shadow == data["metrics"]["n_shadow"] and state.preview_caps == data["preview"]
+    image = bpy.data.images[state.image]
+    assert tuple(image.size) == _png_pixels(folder / "plane_pcss_compare.png").shape[1::-1]
+
+
+def test_compare_operator_unsaved_file_never_writes_into_the_working_directory(saved_scene, tmp_path,
+                                                                              monkeypatch):
+    bpy, sc = saved_scene
+    assert not bpy.data.filepath
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    sc.render.resolution_x, sc.render.resolution_y = 48, 32
+    assert bpy.ops.penumbra.compare_cycles(preview=True, samples=4) == {"FINISHED"}
+    assert list(cwd.iterdir()) == []
+    assert len(list((tmp_path / "tmp" / "penumbra_compare").glob("plane_*.json"))) == 1
+
+
+def test_operators_report_output_errors_without_a_traceback(saved_scene, tmp_path):
+    bpy, sc = saved_scene
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    with pytest.raises(RuntimeError) as info:
+        bpy.ops.penumbra.compare_cycles(directory=str(afile), preview=True, samples=4)
+    assert f"output folder '{afile}' is a file" in str(info.value) and "Traceback" not in str(info.value)
+    assert afile.read_text() == "x"
+    with pytest.raises(RuntimeError) as info:
+        bpy.ops.penumbra.export_exr(filepath=str(tmp_path))
+    assert "is a folder" in str(info.value) and "Traceback" not in str(info.value)
+
+
+def test_cancelling_a_comparison_restores_the_scene_and_writes_nothing(saved_scene, tmp_path):
+    bpy, sc = saved_scene
+    from penumbra.engine.core.settings import RenderSettings
+    from penumbra.engine.measure.compare import compare_steps
+    steps = compare_steps(sc, RenderSettings(technique="HARD"), samples=4, preview=True,
+                          out_dir=str(tmp_path / "out"))
+    next(steps)
+    assert (sc.render.resolution_x, sc.render.resolution_y) == (256, 192)      # preview caps in force
+    next(steps)                                                               # our frame done
+    steps.close()                                                             # Esc
+    assert (sc.render.resolution_x, sc.render.resolution_y) == (400, 300)
+    assert not (tmp_path / "out").exists()
+
+
+class _FakeWM:
+    def __init__(self):
+        self.calls = []
+
+    def __getattr__(self, name):            # progress_begin/update/end, event_timer_add/remove, modal_handler_add
+        return lambda *args, **kwargs: self.calls.append(name)
+
+
+def _modal_driver(bpy, sc, **props):
+    """The operator's modal machinery driven by hand (no window in background mode): a stand-in `self` that
+    borrows the operator's own methods, and a context whose window manager records the calls."""
+    from types import SimpleNamespace
+    from penumbra.operators.render_ops import PENUMBRA_OT_compare_cycles as Op
+    reports = []
+    fake = type("FakeOp", (), {name: getattr(Op, name) for name in ("_start", "_advance", "_end", "_show",
+                                                                    "modal")})()
+    fake.directory, fake.samples, fake.preview, fake.noise_floor = props["directory"], 4, True, False
+    fake.report = lambda kind, text: reports.append((set(kind), text))
+    fake._timer = object()
+    context = SimpleNamespace(scene=sc, window_manager=_FakeWM(), screen=None)
+    assert fake._start(context)
+    return fake, context, reports
+
+
+def test_compare_modal_runs_on_timer_events_and_esc_cancels(saved_scene, tmp_path):
+    bpy, sc = saved_scene
+    from types import SimpleNamespace
+    timer, esc = SimpleNamespace(type="TIMER"), SimpleNamespace(type="ESC")
+    fake, context, reports = _modal_driver(bpy, sc, directory=str(tmp_path / "a"))
+    statuses = [fake.modal(context, timer) for _ in range(2)]
+    assert statuses == [{"RUNNING_MODAL"}] * 2 and sc.penumbra_compare.running
+    assert 0.0 < sc.penumbra_compare.progress < 1.0 and "Cycles" in sc.penumbra_compare.status
+    assert fake.modal(context, esc) == {"CANCELLED"}
+    assert sc.penumbra_compare.status == "cancelled" and not sc.penumbra_compare.running
+    assert (sc.render.resolution_x, sc.render.resolution_y) == (400, 300)
+    assert "event_timer_remove" in context.window_manager.calls and not (tmp_path / "a").exists()
+
+    fake, context, reports = _modal_driver(bpy, sc, directory=str(tmp_path / "b"))
+    for _ in range(10):
+        status = fake.modal(context, timer)
+        if status != {"RUNNING_MODAL"}:
+            break
+    assert status == {"FINISHED"} and sc.penumbra_compare.status == "done"
+    assert any("PREVIEW" in text for kind, text in reports if kind == {"INFO"})
+    assert len(list((tmp_path / "b").glob("*_compare.png"))) == 1

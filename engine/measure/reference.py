@@ -44,6 +44,7 @@ import hashlib
 import os
 import shutil
 import tempfile
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -63,6 +64,11 @@ DEFAULT_THRESHOLD = 1e-3
 
 # Number of Cycles renders actually run in this process (cache hits do not count). Tests read it.
 render_count = 0
+
+# Set by a SIGINT handler (the command line's): Cycles renders from a Python callback and Blender swallows a
+# KeyboardInterrupt raised there (it logs it and writes what was rendered), so every render is checked
+# against this flag afterwards and an interrupted one is neither returned nor cached.
+interrupted = threading.Event()
 
 
 @dataclass
@@ -362,6 +368,8 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
             t0 = time.perf_counter()
             bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
             seconds.append(time.perf_counter() - t0)
+            if interrupted.is_set():
+                raise KeyboardInterrupt("Cycles render interrupted")
             render_count += 1
             if not os.path.exists(path):
                 raise RuntimeError(f"Cycles wrote no image to {path}")
