@@ -189,7 +189,9 @@ def cmd_compare(args) -> int:
 
 def _interrupt_cycles_on_sigint() -> None:
     """Ctrl-C during a Cycles render: Blender swallows the KeyboardInterrupt raised inside Cycles' Python
-    callback, so the flag the reference checks after every render is set as well."""
+    callback (it logs it and saves the image), so the handler also sets the flag the reference checks after
+    every render; the run then stops there (exit 130) and the interrupted render is not cached. Cycles
+    itself finishes the render in progress: nothing here can stop it sooner."""
     import signal
     from .measure import reference
     reference.interrupted.clear()
@@ -246,6 +248,7 @@ def _int_list(text: str) -> list[int]:
 
 
 def cmd_bench(args) -> int:
+    check_outputs(folders=[args.out])
     _import_bpy()
     if args.study:
         # The paper studies: each study module has its own options; pass them after `--`.

@@ -498,3 +498,24 @@ def test_compare_modal_runs_on_timer_events_and_esc_cancels(saved_scene, tmp_pat
     assert status == {"FINISHED"} and sc.penumbra_compare.status == "done"
     assert any("PREVIEW" in text for kind, text in reports if kind == {"INFO"})
     assert len(list((tmp_path / "b").glob("*_compare.png"))) == 1
+
+
+def test_ctrl_c_during_cycles_stops_compare_with_status_130(tmp_path):
+    """Blender swallows the KeyboardInterrupt raised inside Cycles; the run must still stop (after the
+    render in progress), exit 130, and cache nothing."""
+    import glob
+    import signal
+    import time
+    env = {**os.environ, "PENUMBRA_CACHE": str(tmp_path / "cache"), "TMPDIR": str(tmp_path)}
+    p = subprocess.Popen([sys.executable, "-m", "penumbra", "compare", "--scene", "plane", "--resolution", "32",
+                          "32", "--cycles-samples", "400", "--no-noise-floor"], cwd=tmp_path, env=env,
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    start = time.monotonic()
+    while not glob.glob(str(tmp_path / "penumbra_ref_*")) and time.monotonic() - start < 120:
+        time.sleep(0.1)                 # the reference's temporary folder: Cycles is about to render
+    time.sleep(1.0)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 130, err[-2000:]
+    assert "penumbra: compare cancelled" in err
+    assert not list((tmp_path / "cache").rglob("*.npz"))
