@@ -216,7 +216,7 @@ def cmd_stress(args) -> int:
     print(stress.format_table(rows))
     bad, expected, status = stress.verdict(rows)
     if expected:
-        print(f"\nexpected failures (documented limits, see README 'Known limits'):")
+        print("\nexpected failures (documented limits, see README 'Known limits'):")
         for r in expected:
             print(f"  {r['case']} {r['technique']}: {r['expected']}")
     for r in bad:

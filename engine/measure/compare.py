@@ -70,8 +70,8 @@ class Comparison:
         return json_safe({
             "scene": self.scene, "technique": self.technique, "resolution": list(self.resolution),
             "metrics": self.metrics, "noise_floor": self.noise_floor, "ours_ms": self.ours_ms,
-            "cycles_seconds": self.cycles_seconds, "cycles_seconds_means": f"one Cycles render, the "
-            f"shadowed one ({self.cycles_timed_by})", "cycles_pair_seconds": self.cycles_pair_seconds,
+            "cycles_seconds": self.cycles_seconds, "cycles_timed_by": self.cycles_timed_by,
+            "cycles_pair_seconds": self.cycles_pair_seconds,
             "reference_samples": self.reference_samples, "unshadowed_rel_error": self.unshadowed_rel_error,
             "undefined": self.undefined or None, "preview": self.preview or None, "warnings": self.warnings})
 
