@@ -4,7 +4,7 @@ for techniques that split casters from receivers)."""
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..engine.core.settings import SHARED, RenderSettings
 from ..engine.render.pipeline import TECHNIQUES
@@ -74,7 +74,35 @@ class PenumbraObjectSettings(bpy.types.PropertyGroup):
     ])
 
 
-classes = (PenumbraSceneSettings, PenumbraObjectSettings)
+class PenumbraCompareSettings(bpy.types.PropertyGroup):
+    """Compare with Cycles: what to run, its progress while it runs, and the last result's numbers (saved
+    with the .blend, so they stay beside the image they describe)."""
+    preview: BoolProperty(name="Preview", default=True,
+                          description="Capped resolution (longest side 256 px) and Cycles samples (32), no noise "
+                                      "floor: seconds instead of minutes; the result says so")
+    samples: IntProperty(name="Cycles Samples", default=256, min=1, max=65536)
+    noise_floor: BoolProperty(name="Noise Floor", default=True,
+                              description="Render Cycles a second time with another seed to measure its own noise")
+    directory: StringProperty(name="Output Folder", subtype="DIR_PATH", default="",
+                              description="Empty: a folder penumbra_compare beside the .blend file (the system "
+                                          "temporary folder while the file is unsaved)")
+    running: BoolProperty(default=False)
+    progress: FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR")
+    status: StringProperty(default="")
+    technique: StringProperty(default="")
+    mae_shadow: FloatProperty(default=-1.0, precision=4)
+    n_shadow: IntProperty(default=0)
+    noise_mae: FloatProperty(default=-1.0, precision=4)
+    ours_ms: FloatProperty(default=0.0)
+    cycles_seconds: FloatProperty(default=0.0)
+    reference_samples: IntProperty(default=0)
+    preview_caps: StringProperty(default="")
+    undefined: StringProperty(default="")
+    folder: StringProperty(default="")
+    image: StringProperty(default="")
+
+
+classes = (PenumbraSceneSettings, PenumbraObjectSettings, PenumbraCompareSettings)
 
 
 def register():
@@ -82,9 +110,11 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Scene.penumbra = PointerProperty(type=PenumbraSceneSettings)
     bpy.types.Object.penumbra = PointerProperty(type=PenumbraObjectSettings)
+    bpy.types.Scene.penumbra_compare = PointerProperty(type=PenumbraCompareSettings)
 
 
 def unregister():
+    del bpy.types.Scene.penumbra_compare
     del bpy.types.Object.penumbra
     del bpy.types.Scene.penumbra
     for cls in reversed(classes):

@@ -35,6 +35,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from . import metrics, reference
+from ..blender.compat import eevee_engine_id
 from ..render import pipeline
 from ..core.files import write_atomic
 from ..core.settings import RenderSettings
@@ -219,7 +220,7 @@ def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bo
     view_layer = view_layer or reference._pick_view_layer(scene)
     r = scene.render
     with reference.measurement_scene(scene, view_layer, width, height, "penumbra_eevee_") as (st, tmpdir):
-        st.set(r, "engine", "BLENDER_EEVEE")
+        st.set(r, "engine", eevee_engine_id())
         st.set(scene.eevee, "taa_render_samples", int(samples))
         st.set(scene.eevee, "use_raytracing", False)
         st.set(scene.eevee, "use_shadows", True)
