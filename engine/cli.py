@@ -4,11 +4,28 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import textwrap
 import time
+from pathlib import Path
 
-from .core.settings import RenderSettings
+from .core.arguments import CYCLES_SAMPLES_RANGE, RESOLUTION_RANGE, Parser, add_alias, option_type, ranged
+from .core.settings import RENAMED, SHARED, RenderSettings, setting_option, setting_options
 from .measure.progress import ProgressBar
 from .measure.studies import STUDIES
+
+
+class Refusal(SystemExit):
+    """Bad input: `main` prints the one-line message and exits with status 2, like argparse's own errors."""
+
+
+def version() -> str:
+    """The version the extension's manifest declares (pyproject.toml carries the same number)."""
+    import tomllib
+    manifest = Path(__file__).resolve().parent.parent / "blender_manifest.toml"
+    try:
+        return tomllib.loads(manifest.read_text())["version"]
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        return "unknown"
 
 
 def _import_bpy():
@@ -25,23 +42,42 @@ def _import_bpy():
     return bpy
 
 
+_TRUE, _FALSE = ("1", "true", "yes", "on"), ("0", "false", "no", "off")
+
+
 def parse_overrides(pairs: list[str]) -> dict:
-    """`--set name=value` pairs, typed like the RenderSettings field they name."""
-    from .techniques import all_options
+    """`--set name=value` pairs, typed like the setting they name and checked against its range."""
+    from .techniques import TECHNIQUES
     defaults = RenderSettings()
-    options = all_options()
-    names = [n for n in RenderSettings.field_names() if n != "extras"] + list(options)
+    options = {o.name: o for o in setting_options()}
+    names = list(dict.fromkeys([n for n in RenderSettings.field_names() if n != "extras"] + list(options)))
     out = {}
     for pair in pairs or []:
         name, sep, raw = pair.partition("=")
+        if name in RENAMED:
+            print(f"penumbra: setting '{name}' is now called '{RENAMED[name]}'", file=sys.stderr)
+            name = RENAMED[name]
         if not sep or name not in names:
-            raise SystemExit(f"penumbra: --set expects NAME=VALUE with NAME one of {', '.join(names)}; "
-                             f"got '{pair}'")
+            raise Refusal(f"penumbra: --set expects NAME=VALUE with NAME one of {', '.join(names)}; "
+                          f"got '{pair}'")
         kind = type(options[name].default) if name in options else type(getattr(defaults, name))
+        if kind is bool:
+            if raw.lower() not in _TRUE + _FALSE:
+                raise Refusal(f"penumbra: setting '{name}' expects true or false, got '{raw}'")
+            value = raw.lower() in _TRUE
+        else:
+            try:
+                value = kind(raw)
+            except ValueError:
+                raise Refusal(f"penumbra: setting '{name}' expects a {kind.__name__}, got '{raw}'") from None
         try:
-            out[name] = raw.lower() in ("1", "true", "yes", "on") if kind is bool else kind(raw)
-        except ValueError:
-            raise SystemExit(f"penumbra: setting '{name}' expects a {kind.__name__}, got '{raw}'") from None
+            if name in options:
+                options[name].check(value)
+            elif name == "technique" and value not in TECHNIQUES:
+                raise ValueError(f"Unknown technique '{value}'; choose one of {', '.join(TECHNIQUES)}")
+        except ValueError as exc:
+            raise Refusal(f"penumbra: {exc}") from None
+        out[name] = value
     return out
 
 
@@ -51,8 +87,12 @@ def load_scene(args):
     from .measure import scenes
     if args.blend:
         if not os.path.isfile(args.blend):
-            raise SystemExit(f"penumbra: no such file '{args.blend}'")
-        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
+            raise Refusal(f"penumbra: no such file '{args.blend}'")
+        try:
+            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(args.blend))
+        except RuntimeError as exc:     # truncated, corrupt or not a .blend at all
+            reason = (str(exc).strip().splitlines() or ["unreadable"])[-1].removeprefix("Error: ")
+            raise Refusal(f"penumbra: cannot read '{args.blend}' as a .blend file ({reason})") from None
         scene = bpy.context.scene
         if args.resolution:
             scene.render.resolution_x, scene.render.resolution_y = args.resolution
@@ -61,28 +101,49 @@ def load_scene(args):
     try:
         return scenes.build(args.scene, resolution=tuple(args.resolution or (256, 256)))
     except ValueError as exc:
-        raise SystemExit(f"penumbra: {exc}") from None
+        raise Refusal(f"penumbra: {exc}") from None
 
 
 def settings_for(scene, args) -> RenderSettings:
     from .blender.settings_bridge import settings_from_scene
     settings = settings_from_scene(scene)
-    changes = parse_overrides(args.set)
+    changes = dict(args.overrides)
     if args.technique:
         changes["technique"] = args.technique
-    if args.map_size:
+    if args.map_size is not None:
         changes["shadow_map_size"] = args.map_size
-    if args.samples:
-        changes["reference_samples"] = args.samples
+    if args.light_samples is not None:
+        changes["averaged_light_samples"] = args.light_samples
     settings = settings.with_(**changes)
     try:
         settings.validate()
     except ValueError as exc:
-        raise SystemExit(f"penumbra: {exc}") from None
+        raise Refusal(f"penumbra: {exc}") from None
     return settings
 
 
+def check_outputs(files=(), folders=()) -> None:
+    """Refuse unwritable outputs before any work: one line naming the path, exit status 2."""
+    from .core.files import OutputError, check_output_file, check_output_folder
+    try:
+        for path in files:
+            if path:
+                check_output_file(path)
+        for path in folders:
+            if path:
+                check_output_folder(path)
+    except OutputError as exc:
+        raise _refuse(exc) from None
+
+
+def _refuse(exc) -> SystemExit:
+    """`penumbra: <message>` on stderr and exit status 2 (argparse's status for bad arguments)."""
+    print(f"penumbra: {exc}", file=sys.stderr)
+    return SystemExit(2)
+
+
 def cmd_render(args) -> int:
+    check_outputs(files=[args.out, args.png])
     scene = load_scene(args)
     settings = settings_for(scene, args)
     import bpy
@@ -100,6 +161,9 @@ def cmd_render(args) -> int:
     t1 = time.perf_counter()
     try:
         result = pipeline.render(snap, settings, on_progress=bar)
+    except ValueError as exc:           # e.g. an image too large for the GPU (engine/gpu/frame.py)
+        print(f"penumbra: {exc}", file=sys.stderr)
+        return 2
     finally:
         bar.close()
     wall_ms = (time.perf_counter() - t1) * 1000.0
@@ -107,9 +171,18 @@ def cmd_render(args) -> int:
         print(f"warning: {message}", file=sys.stderr)
     meta = {"penumbra:technique": settings.technique, "penumbra:scene": snap.name,
             "penumbra:frame_ms": f"{wall_ms:.2f}"}
-    exr.write(args.out, result.passes, meta)
-    if args.png:
-        exr.write_png(args.png, exr.to_srgb8(result.passes["Combined"]))
+    from .core.files import OutputError
+    from .blender.compat import write_display_png
+    try:
+        if args.out.lower().endswith(".png"):   # through the scene's view transform, as Blender's own PNG
+            write_display_png(args.out, result.passes["Combined"], scene)
+        else:
+            exr.write(args.out, result.passes, meta)
+        if args.png:
+            write_display_png(args.png, result.passes["Combined"], scene)
+    except OutputError as exc:          # what was written before stays complete (atomic writes)
+        print(f"penumbra: {exc}", file=sys.stderr)
+        return 2
     print(f"scene {snap.name}: {snap.triangle_count} triangles, {len(snap.lights)} lights, "
           f"{snap.camera.width}x{snap.camera.height}, technique {settings.technique}, "
           f"map {settings.shadow_map_size}")
@@ -122,34 +195,77 @@ def cmd_render(args) -> int:
 
 
 def cmd_compare(args) -> int:
+    check_outputs(folders=[args.out])
     scene = load_scene(args)
     settings = settings_for(scene, args)
-    from .measure.compare import compare
+    from .core.files import OutputError
+    from .measure.compare import compare, write_outputs
     bar = ProgressBar(f"{scene.name} {settings.technique}")
+    _interrupt_cycles_on_sigint()
     try:
-        cmp = compare(scene, settings, samples=args.cycles_samples, out_dir=args.out, repeats=args.repeats,
+        cmp = compare(scene, settings, samples=args.cycles_samples, repeats=args.repeats,
                       with_noise_floor=not args.no_noise_floor, on_progress=bar)
     except ValueError as exc:
         print(f"penumbra: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("penumbra: compare cancelled", file=sys.stderr)
+        return 130
     finally:
         bar.close()
     for message in cmp.warnings:
         print(f"warning: {message}", file=sys.stderr)
-    print(cmp.summary())
+    print(cmp.summary())                # the numbers first: they survive an output that fails
     if args.out:
-        print(f"wrote {args.out}/{cmp.scene}_{cmp.technique.lower()}{{.exr,_cycles.exr,_compare.png,.json}}")
+        try:
+            paths = write_outputs(args.out, cmp, scene)
+        except OutputError as exc:      # what was written before stays complete (atomic writes)
+            print(f"penumbra: {exc}", file=sys.stderr)
+            return 2
+        print("wrote " + ", ".join(paths))
     return 0
+
+
+def _interrupt_cycles_on_sigint() -> None:
+    """Ctrl-C during a Cycles render: Blender swallows the KeyboardInterrupt raised inside Cycles' Python
+    callback (it logs it and saves the image), so the handler also sets the flag the reference checks after
+    every render; the run then stops there (exit 130) and the interrupted render is not cached. Cycles
+    itself finishes the render in progress: nothing here can stop it sooner."""
+    import signal
+    from .measure import reference
+    reference.interrupted.clear()
+
+    def on_sigint(signum, frame):
+        reference.interrupted.set()
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGINT, on_sigint)
 
 
 def cmd_stress(args) -> int:
     from .measure import stress
-    rows = stress.run(args.technique, args.case, parse_overrides(args.set),
-                      progress=lambda line: print(line, file=sys.stderr, flush=True))
+    if args.list:
+        print(stress.format_cases())
+        return 0
+    try:
+        rows = stress.run(args.technique, args.case, args.overrides,
+                          progress=lambda line: print(line, file=sys.stderr, flush=True))
+    except ValueError as exc:           # unknown case or technique: the message lists the valid ones
+        print(f"penumbra: {exc}", file=sys.stderr)
+        return 2
     print(stress.format_table(rows))
-    failed = [r for r in rows if r["status"] != "ok"]
-    print(f"{len(rows) - len(failed)} passed, {len(failed)} failed")
-    return 0 if not failed else 1
+    bad, expected, status = stress.verdict(rows)
+    if expected:
+        print("\nexpected failures (documented limits, see README 'Known limits'):")
+        for r in expected:
+            print(f"  {r['case']} {r['technique']}: {r['expected']}")
+    for r in bad:
+        if r["status"] == "XPASS":
+            print(f"unexpected pass: {r['case']} {r['technique']} passes although stress.EXPECTED_FAILURES "
+                  "lists it as failing at the default settings")
+    ok = sum(r["status"] == "ok" for r in rows)
+    print(f"{ok} passed, {len(expected)} expected failures, {len(bad)} unexpected "
+          f"({', '.join(sorted({r['status'] for r in bad})) or 'none'})")
+    return status
 
 
 def cmd_scenes(args) -> int:
@@ -163,14 +279,16 @@ def _csv_list(text: str) -> list[str]:
     return [item.strip() for item in (text or "").split(",") if item.strip()]
 
 
-def _int_list(text: str) -> list[int]:
+def _int_list(text: str, flag: str, lo: int = 1, hi: int | None = None) -> list[int]:
+    parse = ranged(int, lo, hi)
     try:
-        return [int(item) for item in _csv_list(text)]
-    except ValueError:
-        raise SystemExit(f"penumbra: expected comma-separated integers, got '{text}'") from None
+        return [parse(item) for item in _csv_list(text)]
+    except argparse.ArgumentTypeError as exc:
+        raise Refusal(f"penumbra: {flag}: {exc}") from None
 
 
 def cmd_bench(args) -> int:
+    check_outputs(folders=[args.out])
     _import_bpy()
     if args.study:
         # The paper studies: each study module has its own options; pass them after `--`.
@@ -193,10 +311,11 @@ def cmd_bench(args) -> int:
         results = bench.run_bench(
             args.out, scenes=_csv_list(args.scenes) or None,
             techniques=[t.upper() for t in _csv_list(args.techniques)] or None, sweep=args.sweep, peers=peers,
-            resolution=tuple(args.resolution), repeats=args.repeats, reference_samples=args.reference_samples,
-            cycles_samples=_int_list(args.cycles_samples), eevee_samples=_int_list(args.eevee_samples),
+            resolution=tuple(args.resolution), repeats=args.repeats, reference_samples=args.cycles_samples,
+            cycles_samples=_int_list(args.cycles_peer_samples, "--cycles-peer-samples", *CYCLES_SAMPLES_RANGE),
+            eevee_samples=_int_list(args.eevee_samples, "--eevee-samples"),
             eevee_jitter=not args.eevee_no_jitter, target_samples=args.target_samples,
-            overrides=parse_overrides(args.set), budget_s=args.budget or None,
+            overrides=args.overrides, budget_s=args.budget or None,
             peer_budget_s=args.peer_budget or None)
     except ValueError as exc:
         print(f"penumbra: {exc}", file=sys.stderr)
@@ -207,63 +326,147 @@ def cmd_bench(args) -> int:
     return 0
 
 
+class _Help(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Defaults after each flag's help (none where there is nothing to show); the epilog as written."""
+
+    def _get_help_string(self, action):
+        text, default = action.help, action.default
+        if not text or default is None or default is False or default == "" or "(default" in text:
+            return text
+        if isinstance(default, (list, tuple)):         # nargs=2 flags: "128 128", as typed
+            return f"{text} (default: {' '.join(map(str, default))})"
+        return super()._get_help_string(action)
+
+
+def _flag_of(name: str) -> str:
+    return {"technique": "--technique", "shadow_map_size": "--map-size",
+            "averaged_light_samples": "--light-samples"}.get(name, "")
+
+
+def settings_epilog() -> str:
+    """Every setting `--set NAME=VALUE` takes, with its default and range, generated from the Options."""
+    from .techniques import TECHNIQUES
+
+    def rows(options):
+        for opt in options:
+            default = str(opt.default).lower() if isinstance(opt.default, bool) else str(opt.default)
+            flag = _flag_of(opt.name)
+            yield f"  {opt.name} = {default}   ({opt.allowed()}{'; ' + flag if flag else ''})"
+            yield from textwrap.wrap(opt.description, 104, initial_indent=" " * 6, subsequent_indent=" " * 6)
+
+    lines = ["settings: --set NAME=VALUE (repeatable) sets any of these, each shown with its default and its",
+             "allowed values (a .blend file's own values replace the defaults)",
+             f"  technique = {RenderSettings().technique}   (one of {', '.join(TECHNIQUES)}; --technique)",
+             "shared by every technique:", *rows(SHARED)]
+    for technique in TECHNIQUES.values():
+        if technique.options:
+            label = technique.label
+            named = technique.identifier + (f" ({label})" if label != technique.identifier else "")
+            lines += [f"{named}:", *rows(technique.options)]
+    return "\n".join(lines)
+
+
 def _common_render_args(p) -> None:
     from .techniques import TECHNIQUES
     p.add_argument("--technique", type=str.upper, choices=list(TECHNIQUES),
                    help="shadow technique (default: the scene's setting)")
-    p.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"))
-    p.add_argument("--map-size", type=int, help="shadow-map size in texels")
-    p.add_argument("--samples", type=int, help="light samples for REFERENCE")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="any render setting, repeatable")
+    p.add_argument("--resolution", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
+                   help=f"image size in pixels, each {RESOLUTION_RANGE[0]} … {RESOLUTION_RANGE[1]} "
+                        "(default: the .blend's, 256 256 for a built-in scene)")
+    map_size, samples = setting_option("shadow_map_size"), setting_option("averaged_light_samples")
+    p.add_argument("--map-size", type=option_type(map_size),
+                   help=f"shadow-map size in texels, {map_size.allowed()} (default: the scene's setting)")
+    add_alias(p, "--samples", p.add_argument(
+        "--light-samples", type=option_type(samples),
+        help=f"hard shadow maps averaged per light by REFERENCE, {samples.allowed()} (default: the scene's)"))
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="any render setting, repeatable (listed below)")
+
+
+def _cycles_samples(text: str) -> int:
+    """bench's --cycles-samples: one count (it used to be the Cycles peer's list, now --cycles-peer-samples)."""
+    if "," in text:
+        raise argparse.ArgumentTypeError(
+            f"'{text}': --cycles-samples is the Cycles reference's sample count (one number); the Cycles "
+            "peer's list of counts is now --cycles-peer-samples")
+    return ranged(int, *CYCLES_SAMPLES_RANGE)(text)
+
+
+_cycles_samples.__name__ = "int"
+
+
+def _output_file(*suffixes: str):
+    """An argparse `type` for an output file whose format follows its extension; others are refused."""
+    def parse(text: str) -> str:
+        if not text.lower().endswith(suffixes):
+            raise argparse.ArgumentTypeError(
+                f"'{text}': the format follows the extension; use {' or '.join(suffixes)}")
+        return text
+    parse.__name__ = "file name"
+    return parse
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m penumbra", description="Penumbra soft-shadow renderer")
+    prog = "penumbra" if Path(sys.argv[0]).name == "penumbra" else "python -m penumbra"
+    p = Parser(prog=prog, description="Penumbra soft-shadow renderer")
+    p.add_argument("--version", action="version", version=f"penumbra {version()}")
     sub = p.add_subparsers(dest="command", required=True)
+    epilog = settings_epilog()
 
-    r = sub.add_parser("render", help="render a .blend file or a built-in scene to a multilayer EXR")
+    r = sub.add_parser("render", help="render a .blend file or a built-in scene to a multilayer EXR or a PNG",
+                       formatter_class=_Help, epilog=epilog)
     src = r.add_mutually_exclusive_group(required=True)
     src.add_argument("blend", nargs="?", help="a .blend file")
     src.add_argument("--scene", help="a built-in scene (see `python -m penumbra scenes`)")
     _common_render_args(r)
-    r.add_argument("--out", required=True, help="multilayer EXR to write")
-    r.add_argument("--png", help="also write Combined as an sRGB PNG")
+    r.add_argument("--out", required=True, type=_output_file(".exr", ".png"),
+                   help="file to write: .exr (multilayer, every pass) or .png (Combined, sRGB)")
+    r.add_argument("--png", type=_output_file(".png"), help="also write Combined as an sRGB PNG")
     r.set_defaults(func=cmd_render)
 
-    c = sub.add_parser("compare", help="render with Penumbra and Cycles, print error and time side by side")
+    c = sub.add_parser("compare", help="render with Penumbra and Cycles, print error and time side by side",
+                       formatter_class=_Help, epilog=epilog)
     src = c.add_mutually_exclusive_group(required=True)
     src.add_argument("blend", nargs="?", help="a .blend file")
     src.add_argument("--scene", help="a built-in scene")
     _common_render_args(c)
     c.add_argument("--out", help="folder for EXRs, the comparison PNG and a JSON of the numbers")
-    c.add_argument("--cycles-samples", type=int, default=256, help="Cycles samples of the reference")
-    c.add_argument("--repeats", type=int, default=3, help="timed repeats of our frame (median reported)")
+    c.add_argument("--cycles-samples", type=ranged(int, *CYCLES_SAMPLES_RANGE), default=256,
+                   help="Cycles samples of the reference")
+    c.add_argument("--repeats", type=ranged(int, 1), default=3,
+                   help="timed repeats of our frame (median reported)")
     c.add_argument("--no-noise-floor", action="store_true", help="skip the second Cycles seed")
     c.set_defaults(func=cmd_compare)
 
-    b = sub.add_parser("bench", help="time and error of every technique against Cycles (and EEVEE), per scene")
+    b = sub.add_parser("bench", help="time and error of every technique against Cycles (and EEVEE), per scene",
+                       formatter_class=_Help, epilog=epilog)
     b.add_argument("--scenes", default="", help="comma-separated built-in scenes (default: all)")
     b.add_argument("--techniques", default="", help="comma-separated techniques (default: all)")
     b.add_argument("--sweep", action="store_true", help="sweep each technique's knobs (map size, kernels, …)")
     b.add_argument("--peers", default="cycles", help="comma-separated peers: cycles, eevee, or none")
-    b.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"), default=[128, 128])
-    b.add_argument("--repeats", type=int, default=5, help="timed frames per configuration (median reported)")
-    b.add_argument("--reference-samples", type=int, default=1024, help="Cycles samples of the reference")
-    b.add_argument("--cycles-samples", default="1,4,16,64,256", help="sample counts of the Cycles peer")
+    b.add_argument("--resolution", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
+                   default=[128, 128], help="image size in pixels")
+    b.add_argument("--repeats", type=ranged(int, 1), default=5,
+                   help="timed frames per configuration (median reported)")
+    add_alias(b, "--reference-samples", b.add_argument(
+        "--cycles-samples", type=_cycles_samples, default=1024, help="Cycles samples of the reference"))
+    b.add_argument("--cycles-peer-samples", default="1,4,16,64,256",
+                   help="comma-separated sample counts of the Cycles peer")
     b.add_argument("--eevee-samples", default="1,16,64", help="sample counts of the EEVEE peer")
     b.add_argument("--eevee-no-jitter", action="store_true",
                    help="EEVEE with Blender's default unjittered shadows (default: lights' shadow jitter on)")
-    b.add_argument("--target-samples", type=int, default=64,
+    b.add_argument("--target-samples", type=ranged(int, 1), default=64,
                    help="the summary lists our fastest configuration at least as accurate as Cycles at this")
-    b.add_argument("--budget", type=float, default=20.0,
+    b.add_argument("--budget", type=ranged(float, 0.0), default=20.0,
                    help="seconds of timed frames per configuration before fewer repeats are taken (0: no cap)")
-    b.add_argument("--peer-budget", type=float, default=5.0,
+    b.add_argument("--peer-budget", type=ranged(float, 0.0), default=5.0,
                    help="seconds of Cycles renders per sample count before fewer repeats are taken (0: no cap)")
     b.add_argument("--set", action="append", metavar="NAME=VALUE", help="base render setting, repeatable")
     b.add_argument("--viewport", action="store_true",
                    help="interactive latency instead: first and refined frame after a camera move, an object "
                         "move and a light edit (default scenes suzanne, balls, city)")
-    b.add_argument("--viewport-size", type=int, nargs=2, metavar=("W", "H"), default=[1280, 720])
+    b.add_argument("--viewport-size", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
+                   default=[1280, 720], help="viewport size in pixels")
     b.add_argument("--study", choices=tuple(STUDIES),
                    help="a paper's study instead: SSM's §4.2 curves (map size, light size, occluder position) "
                         "or the bitmask paper's Table 2/3 columns; further options after `--`")
@@ -271,10 +474,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", required=True, help="folder for results.json/.csv/.md and pareto_<scene>.png")
     b.set_defaults(func=cmd_bench)
 
-    st = sub.add_parser("stress", help="stiff and extreme cases × every technique: NaN/Inf, range, error, time")
+    st = sub.add_parser("stress", help="stiff and extreme cases × every technique: NaN/Inf, range, error, time",
+                        formatter_class=_Help, epilog=epilog)
     st.add_argument("--technique", action="append", type=str.upper, help="technique(s) (default: all)")
     st.add_argument("--case", action="append", help="case(s) (default: all)")
     st.add_argument("--set", action="append", metavar="NAME=VALUE", help="render setting, repeatable")
+    st.add_argument("--list", action="store_true", help="list the cases and their expected failures, then exit")
     st.set_defaults(func=cmd_stress)
 
     s = sub.add_parser("scenes", help="list the built-in scenes")
@@ -284,4 +489,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    return args.func(args)
+    try:
+        # Checked before any scene is loaded: a bad --set is refused at once.
+        args.overrides = parse_overrides(getattr(args, "set", None))
+        return args.func(args)
+    except Refusal as exc:
+        print(exc, file=sys.stderr)
+        return 2

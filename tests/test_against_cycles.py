@@ -41,8 +41,8 @@ def test_reference_technique_matches_cycles_within_its_noise(name):
     sc, snap = _scene(name, (128, 128))
     floor = reference.noise_floor(sc, 256)
     ref = reference.cycles_visibility(sc, samples=256)
-    r = pipeline.render(snap, RenderSettings(technique="REFERENCE", reference_samples=256,
-                                             shadow_map_size=1024))
+    r = pipeline.render(snap, RenderSettings(technique="REFERENCE", shadow_map_size=1024)
+                              .with_(averaged_light_samples=256))
     m = metrics.compare(r.passes["Visibility"][..., 0], ref.visibility, ref.mask)
     print(name, "ours", m, "cycles floor", floor)
     assert m["n_shadow"] > 1000

@@ -145,11 +145,11 @@ def _with_light(snap, **changes):
 @pytest.fixture(scope="module")
 def reference_disk():
     snap = _with_light(floating_plane(64), shape=DISK, size_x=1.2, size_y=1.2)
-    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", reference_samples=256,
-                                               shadow_map_size=512, reference_weighted=False))
+    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", shadow_map_size=512)
+                          .with_(averaged_light_samples=256, averaged_weighted=False))
     square = _with_light(snap, shape="SQUARE")
-    ref_sq = pipeline.render(square, RenderSettings(technique="REFERENCE", reference_samples=256,
-                                                    shadow_map_size=512, reference_weighted=False))
+    ref_sq = pipeline.render(square, RenderSettings(technique="REFERENCE", shadow_map_size=512)
+                             .with_(averaged_light_samples=256, averaged_weighted=False))
     return snap, ref.passes["Visibility"][..., 0], ref_sq.passes["Visibility"][..., 0]
 
 
@@ -179,8 +179,8 @@ def test_irradiance_weighted_samples_match_the_weighted_reference(plane, acc):
     same weighting (256 maps) on the parallel planes: the same bounds as the unweighted closed form, and
     clearly closer than uniform counting (which differs from it by the weighting itself)."""
     snap, pts, _ = plane
-    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", reference_samples=256,
-                                               shadow_map_size=1024)).passes["Visibility"][..., 0]
+    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", shadow_map_size=1024)
+                          .with_(averaged_light_samples=256)).passes["Visibility"][..., 0]
     on_ground = np.abs(pipeline.render(snap, bp()).passes["Depth"][..., 0] - _ground_depth(snap, pts)) < 1e-3
     errors = {}
     for weighting in ("IRRADIANCE", "UNIFORM"):
@@ -221,8 +221,8 @@ def test_ellipse_point_spot_and_sun_lights_are_finite_and_soft():
 def test_sun_matches_reference():
     """Sun: the map is orthographic and micro-occluders backproject to directions (offset per unit depth)."""
     snap = _with_light(floating_plane(64), kind=SUN, angle=np.radians(12.0), power=3.0)
-    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", reference_samples=256,
-                                               shadow_map_size=512, reference_weighted=False))
+    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", shadow_map_size=512)
+                          .with_(averaged_light_samples=256, averaged_weighted=False))
     r = pipeline.render(snap, bp(shadow_map_size=512, bp_budget=64, bp_accumulation="BITMASK_32"))
     v, vr = r.passes["Visibility"][..., 0], ref.passes["Visibility"][..., 0]
     pen = (vr < 0.99) | (v < 0.99)

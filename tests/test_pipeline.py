@@ -45,7 +45,8 @@ def scene():
 
 @pytest.mark.parametrize("technique", list(TECHNIQUES))
 def test_every_technique_is_finite_and_bounded(scene, technique):
-    r = pipeline.render(scene, RenderSettings(technique=technique, shadow_map_size=256, reference_samples=16))
+    r = pipeline.render(scene, RenderSettings(technique=technique, shadow_map_size=256)
+                        .with_(averaged_light_samples=16))
     for name, array in r.passes.items():
         assert np.isfinite(array).all(), f"{technique}: non-finite values in {name}"
     v = r.passes["Visibility"][..., 0]
@@ -57,8 +58,8 @@ def test_every_technique_is_finite_and_bounded(scene, technique):
 
 def test_reference_matches_the_closed_form(scene):
     """Unweighted REFERENCE converges to the exact unoccluded light fraction of the parallel-planes case."""
-    r = pipeline.render(scene, RenderSettings(technique="REFERENCE", shadow_map_size=1024,
-                                              reference_samples=256, reference_weighted=False))
+    r = pipeline.render(scene, RenderSettings(technique="REFERENCE", shadow_map_size=1024)
+                        .with_(averaged_light_samples=256, averaged_weighted=False))
     pts = ground_points(scene)
     on_ground = np.abs(r.passes["Depth"][..., 0] - _ground_depth(scene, pts)) < 1e-3
     exact = exact_area_visibility(pts, 0.5, 0.5, 1.0, 3.0)
@@ -78,8 +79,8 @@ def _ground_depth(snap, pts):
 
 def test_pcss_is_close_to_the_closed_form_on_parallel_planes(scene):
     """PCSS's penumbra estimate is exact for parallel planes, so only its sampling error remains."""
-    r = pipeline.render(scene, RenderSettings(technique="PCSS", shadow_map_size=1024,
-                                              pcss_blocker_samples=64, pcss_filter_samples=256))
+    r = pipeline.render(scene, RenderSettings(technique="PCSS", shadow_map_size=1024)
+                        .with_(pcss_blocker_samples=64, pcss_filter_samples=256))
     pts = ground_points(scene)
     on_ground = np.abs(r.passes["Depth"][..., 0] - _ground_depth(scene, pts)) < 1e-3
     exact = exact_area_visibility(pts, 0.5, 0.5, 1.0, 3.0)
@@ -131,7 +132,8 @@ def test_zero_size_area_light_is_a_point_light_with_a_hard_shadow():
     hard = pipeline.render(snap, RenderSettings(technique="HARD")).passes["Visibility"]
     assert hard.min() == 0.0 and hard.max() == 1.0
     for technique in TECHNIQUES:
-        v = pipeline.render(snap, RenderSettings(technique=technique, reference_samples=8)).passes["Visibility"]
+        settings = RenderSettings(technique=technique).with_(averaged_light_samples=8)
+        v = pipeline.render(snap, settings).passes["Visibility"]
         assert np.mean(np.abs(v - hard)) < 0.01, technique
 
 
@@ -144,6 +146,6 @@ def test_a_stop_request_cancels_the_frame():
         calls.append(1)
         return True
     with pytest.raises(Cancelled):
-        pipeline.render(floating_plane(64), RenderSettings(technique="REFERENCE", reference_samples=4096,
-                                                           shadow_map_size=1024), should_stop=should_stop)
+        pipeline.render(floating_plane(64), RenderSettings(technique="REFERENCE", shadow_map_size=1024)
+                        .with_(averaged_light_samples=4096), should_stop=should_stop)
     assert calls

@@ -21,7 +21,7 @@ def test_reference_converges_to_cycles_with_light_samples(name):
     floor = reference.noise_floor(sc, 1024)
     errors = []
     for n in (16, 64, 256, 1024):
-        r = pipeline.render(snap, RenderSettings(technique="REFERENCE", reference_samples=n))
+        r = pipeline.render(snap, RenderSettings(technique="REFERENCE").with_(averaged_light_samples=n))
         errors.append(metrics.compare(r.passes["Visibility"][..., 0], ref.visibility, ref.mask)["mae_shadow"])
     print(name, errors, "floor", floor["mae_shadow"])
     for a, b in zip(errors, errors[1:]):

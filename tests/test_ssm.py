@@ -43,8 +43,8 @@ def test_irradiance_weighting_matches_the_weighted_reference():
     receivers do face the light, so this is the irradiance-weighted visibility REFERENCE computes: the same
     bounds as the unweighted closed form, and clearly closer than uniform weighting."""
     snap = floating_plane(96)
-    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", reference_samples=256,
-                                               shadow_map_size=1024)).passes["Visibility"][..., 0]
+    ref = pipeline.render(snap, RenderSettings(technique="REFERENCE", shadow_map_size=1024)
+                          .with_(averaged_light_samples=256)).passes["Visibility"][..., 0]
     pts = ground_points(snap)
     errors = {}
     for weighting in ("IRRADIANCE", "UNIFORM"):

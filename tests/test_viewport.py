@@ -79,7 +79,7 @@ def test_progressive_then_full_and_stale_work_cancelled(balls):
     snap = extract(depsgraph, sc)
     session = ViewportSession()
     session.sync(depsgraph)
-    settings = RenderSettings(technique="REFERENCE", reference_samples=64, shadow_map_size=512)
+    settings = RenderSettings(technique="REFERENCE", shadow_map_size=512).with_(averaged_light_samples=64)
     session.request(snap.camera, settings)
     # A newer view arrives at once: everything queued or running for the first is dropped.
     moved = snap.camera.view.copy()
@@ -104,5 +104,6 @@ def test_coarse_frame_uses_each_techniques_cheap_mode_and_never_raises_quality()
         for name, value in technique.coarse.items():
             got = getattr(coarse, name) if name in RenderSettings.field_names() else coarse.option(name)
             assert got == value, (identifier, name)
-    low = coarse_settings(RenderSettings(technique="REFERENCE", reference_samples=2, shadow_map_size=128), 256)
-    assert low.reference_samples == 2 and low.shadow_map_size == 128
+    low = coarse_settings(RenderSettings(technique="REFERENCE", shadow_map_size=128)
+                          .with_(averaged_light_samples=2), 256)
+    assert low.option("averaged_light_samples") == 2 and low.shadow_map_size == 128

@@ -22,8 +22,8 @@ sc = scenes.build("suzanne", resolution=(256, 256))
 snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
 panels = []
 for technique, extra in (("HARD", {}), ("PCSS", {}), ("BACKPROJECTION", {}), ("SSM", {}),
-                         ("REFERENCE", {"reference_samples": 256})):
-    settings = RenderSettings(technique=technique, **extra)
+                         ("REFERENCE", {"averaged_light_samples": 256})):
+    settings = RenderSettings(technique=technique).with_(**extra)
     pipeline.render(snap, settings)                       # compile shaders first
     start = time.perf_counter()
     result = pipeline.render(snap, settings)

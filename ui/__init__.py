@@ -1,7 +1,8 @@
-from . import panels, properties
+from . import panels, properties, versioning
 
 
 def register():
+    versioning.register()           # before the properties: a file loaded from now on gets upgraded
     properties.register()
     panels.register()
 
@@ -9,3 +10,4 @@ def register():
 def unregister():
     panels.unregister()
     properties.unregister()
+    versioning.unregister()

@@ -5,14 +5,6 @@ import bpy
 
 ENGINE = "PENUMBRA"
 
-# Which settings each technique reads, in the order the panel shows them.
-TECHNIQUE_SETTINGS = {
-    "HARD": (),
-    "PCF": ("pcf_radius", "pcf_taps"),
-    "PCSS": ("pcss_blocker_samples", "pcss_filter_samples", "pcss_max_radius"),
-    "REFERENCE": ("reference_samples", "reference_weighted", "seed"),
-}
-
 
 class PenumbraPanel:
     bl_space_type = "PROPERTIES"
@@ -39,15 +31,14 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         col.prop(props, "normal_offset")
         from ..engine.render.pipeline import TECHNIQUES
         technique = TECHNIQUES.get(props.technique)
-        names = TECHNIQUE_SETTINGS.get(props.technique, ()) + tuple(o.name for o in technique.options)
+        # Every technique's settings come from its Option list (and the shared ones it reads).
+        names = tuple(o.name for o in technique.options) + tuple(technique.reads_shared)
         if names:
-            box = layout.column(heading=props.technique.title())
+            box = layout.column(heading=technique.label)
             for name in names:
                 box.prop(props, name)
         layout.prop(props, "debug_passes")
-        row = layout.row(align=True)
-        row.operator("penumbra.compare_cycles", icon="IMAGE_REFERENCE")
-        row.operator("penumbra.export_exr", icon="EXPORT")
+        layout.operator("penumbra.export_exr", icon="EXPORT")
 
 
 class RENDER_PT_penumbra_viewport(PenumbraPanel, bpy.types.Panel):
@@ -65,6 +56,52 @@ class RENDER_PT_penumbra_viewport(PenumbraPanel, bpy.types.Panel):
         col.prop(props, "viewport_coarse_map_size", text="Map Size")
         col.prop(props, "viewport_coarse_scale", text="Resolution")
         layout.prop(props, "viewport_pass", text="Pass")
+
+
+class RENDER_PT_penumbra_compare(PenumbraPanel, bpy.types.Panel):
+    bl_label = "Compare with Cycles"
+    bl_context = "render"
+    bl_parent_id = "RENDER_PT_penumbra"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        state = context.scene.penumbra_compare
+        layout.prop(state, "preview")
+        col = layout.column()
+        col.prop(state, "samples")
+        col.prop(state, "noise_floor")
+        col.enabled = not state.preview
+        layout.prop(state, "directory")
+        row = layout.row()
+        row.enabled = not state.running
+        op = row.operator("penumbra.compare_cycles", icon="IMAGE_REFERENCE")
+        op.preview, op.samples, op.noise_floor, op.directory = (state.preview, state.samples, state.noise_floor,
+                                                                state.directory)
+        if state.running:
+            text = f"{state.status} (Esc cancels)"
+            if hasattr(layout, "progress"):         # UILayout.progress: Blender 4.0 and newer
+                layout.progress(factor=state.progress, text=text)
+            else:
+                layout.label(text=f"{state.progress:.0%} {text}")
+            return
+        if state.status.startswith("failed") or state.status == "cancelled":
+            layout.label(text=state.status, icon="ERROR")
+        if not state.technique:
+            return
+        box = layout.box()
+        box.use_property_split = False
+        box.label(text=f"{state.technique} against Cycles {state.reference_samples} spp", icon="INFO")
+        if state.mae_shadow >= 0.0:
+            floor = f" (noise floor {state.noise_mae:.4f})" if state.noise_mae >= 0.0 else ""
+            box.label(text=f"mae_shadow {state.mae_shadow:.4f} over {state.n_shadow} px{floor}")
+        else:
+            box.label(text=f"no error measured: {state.undefined}")
+        box.label(text=f"Penumbra {state.ours_ms:.1f} ms, Cycles {state.cycles_seconds:.2f} s per render")
+        if state.preview_caps:
+            box.label(text=f"Preview: {state.preview_caps}", icon="ERROR")
+        if state.image:
+            box.label(text=f"Image '{state.image}' (Image Editor), files in {state.folder}", icon="IMAGE_DATA")
 
 
 def draw_viewport_pass(self, context):
@@ -132,7 +169,8 @@ class OBJECT_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         col.prop(obj, "visible_shadow", text="Shadow")
 
 
-classes = (RENDER_PT_penumbra, RENDER_PT_penumbra_viewport, DATA_PT_penumbra_light, OBJECT_PT_penumbra)
+classes = (RENDER_PT_penumbra, RENDER_PT_penumbra_viewport, RENDER_PT_penumbra_compare, DATA_PT_penumbra_light,
+           OBJECT_PT_penumbra)
 
 
 def _compatible_panels():

@@ -1,42 +1,32 @@
-"""Blender properties: scene.penumbra (render settings, one property per RenderSettings field) and
-object.penumbra (the object's role for techniques that split casters from receivers)."""
+"""Blender properties: scene.penumbra (render settings: the technique, then one property per Option, shared
+or a technique's own, generated from the Option's default and range) and object.penumbra (the object's role
+for techniques that split casters from receivers)."""
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from ..engine.core.settings import RenderSettings
+from ..engine.core.settings import SHARED, RenderSettings
 from ..engine.render.pipeline import TECHNIQUES
 
 _D = RenderSettings()   # defaults come from the dataclass, so the two never disagree
 
 
+def refresh_passes(self, context):
+    """The pass list depends on these settings (core/passes.render_passes): ask every view layer of the scene
+    to query the engine's passes again, as Cycles does for its pass toggles, so the compositor's Render
+    Layers node and the pass menus follow at once."""
+    for view_layer in self.id_data.view_layers:
+        view_layer.update_render_passes()
+
+
+PASS_LIST_SETTINGS = {"technique", "debug_passes"}
+
+
 class PenumbraSceneSettings(bpy.types.PropertyGroup):
     technique: EnumProperty(name="Technique", items=[
         (t.identifier, t.label, t.description) for t in TECHNIQUES.values()], default=_D.technique,
-        description="Soft-shadow technique for final renders")
-    shadow_map_size: IntProperty(name="Shadow Map Size", default=_D.shadow_map_size, min=16, max=16384,
-                                 soft_min=128, soft_max=4096,
-                                 description="Texels along the longer side of each light's shadow map")
-    bias: FloatProperty(name="Bias", default=_D.bias, min=0.0, max=100.0,
-                        description="Depth bias in shadow-map texels, scaled by the receiver's slope")
-    normal_offset: FloatProperty(name="Normal Offset", default=_D.normal_offset, min=0.0, max=100.0,
-                                 description="Receiver offset along its normal, in shadow-map texels")
-    pcf_radius: FloatProperty(name="Radius", default=_D.pcf_radius, min=0.0, max=256.0,
-                              description="PCF kernel radius in texels")
-    pcf_taps: IntProperty(name="Taps", default=_D.pcf_taps, min=1, max=33,
-                          description="Taps per side of the PCF kernel")
-    pcss_blocker_samples: IntProperty(name="Blocker Samples", default=_D.pcss_blocker_samples, min=1, max=1024)
-    pcss_filter_samples: IntProperty(name="Filter Samples", default=_D.pcss_filter_samples, min=1, max=4096)
-    pcss_max_radius: FloatProperty(name="Max Radius", default=_D.pcss_max_radius, min=0.001, max=1.0,
-                                   description="Cap on the search and filter radius, as a fraction of the shadow map")
-    reference_samples: IntProperty(name="Light Samples", default=_D.reference_samples, min=1, max=4096,
-                                   description="Hard shadow maps averaged per light")
-    reference_weighted: BoolProperty(name="Weighted", default=_D.reference_weighted,
-                                     description="Weight each light sample by its unoccluded contribution")
-    seed: IntProperty(name="Seed", default=_D.seed, min=0)
-    debug_passes: BoolProperty(name="Debug Passes", default=_D.debug_passes,
-                               description="Also write the technique's debug passes")
+        description="Soft-shadow technique for final renders", update=refresh_passes)
     # The viewport's own quality (Rendered shading); final renders ignore these.
     viewport_technique: EnumProperty(name="Viewport Technique", items=[
         ("SAME", "Same as Render", "Use the final render's technique")] + [
@@ -57,21 +47,23 @@ class PenumbraSceneSettings(bpy.types.PropertyGroup):
 
 
 def _option_property(opt):
-    """A Blender property for a technique's Option."""
+    """A Blender property for an Option (a shared setting or a technique's own)."""
     common = dict(name=opt.label, description=opt.description)
+    if opt.name in PASS_LIST_SETTINGS:
+        common["update"] = refresh_passes
     if opt.items:
         return EnumProperty(items=[tuple(i) for i in opt.items], default=opt.default, **common)
     if isinstance(opt.default, bool):
         return BoolProperty(default=opt.default, **common)
-    bounds = {k: v for k, v in (("min", opt.min), ("max", opt.max)) if v is not None}
+    bounds = {k: v for k, v in (("min", opt.min), ("max", opt.max), ("soft_min", opt.soft_min),
+                                ("soft_max", opt.soft_max)) if v is not None}
     if isinstance(opt.default, int):
         return IntProperty(default=opt.default, **{k: int(v) for k, v in bounds.items()}, **common)
     return FloatProperty(default=opt.default, **bounds, **common)
 
 
-for _technique in TECHNIQUES.values():
-    for _opt in _technique.options:
-        PenumbraSceneSettings.__annotations__[_opt.name] = _option_property(_opt)
+for _opt in SHARED + tuple(o for t in TECHNIQUES.values() for o in t.options):
+    PenumbraSceneSettings.__annotations__[_opt.name] = _option_property(_opt)
 
 
 class PenumbraObjectSettings(bpy.types.PropertyGroup):
@@ -82,7 +74,35 @@ class PenumbraObjectSettings(bpy.types.PropertyGroup):
     ])
 
 
-classes = (PenumbraSceneSettings, PenumbraObjectSettings)
+class PenumbraCompareSettings(bpy.types.PropertyGroup):
+    """Compare with Cycles: what to run, its progress while it runs, and the last result's numbers (saved
+    with the .blend, so they stay beside the image they describe)."""
+    preview: BoolProperty(name="Preview", default=True,
+                          description="Capped resolution (longest side 256 px) and Cycles samples (32), no noise "
+                                      "floor: seconds instead of minutes; the result says so")
+    samples: IntProperty(name="Cycles Samples", default=256, min=1, max=65536)
+    noise_floor: BoolProperty(name="Noise Floor", default=True,
+                              description="Render Cycles a second time with another seed to measure its own noise")
+    directory: StringProperty(name="Output Folder", subtype="DIR_PATH", default="",
+                              description="Empty: a folder penumbra_compare beside the .blend file (the system "
+                                          "temporary folder while the file is unsaved)")
+    running: BoolProperty(default=False)
+    progress: FloatProperty(default=0.0, min=0.0, max=1.0, subtype="FACTOR")
+    status: StringProperty(default="")
+    technique: StringProperty(default="")
+    mae_shadow: FloatProperty(default=-1.0, precision=4)
+    n_shadow: IntProperty(default=0)
+    noise_mae: FloatProperty(default=-1.0, precision=4)
+    ours_ms: FloatProperty(default=0.0)
+    cycles_seconds: FloatProperty(default=0.0)
+    reference_samples: IntProperty(default=0)
+    preview_caps: StringProperty(default="")
+    undefined: StringProperty(default="")
+    folder: StringProperty(default="")
+    image: StringProperty(default="")
+
+
+classes = (PenumbraSceneSettings, PenumbraObjectSettings, PenumbraCompareSettings)
 
 
 def register():
@@ -90,9 +110,11 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Scene.penumbra = PointerProperty(type=PenumbraSceneSettings)
     bpy.types.Object.penumbra = PointerProperty(type=PenumbraObjectSettings)
+    bpy.types.Scene.penumbra_compare = PointerProperty(type=PenumbraCompareSettings)
 
 
 def unregister():
+    del bpy.types.Scene.penumbra_compare
     del bpy.types.Object.penumbra
     del bpy.types.Scene.penumbra
     for cls in reversed(classes):

@@ -63,6 +63,9 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
             result = pipeline.render(snap, settings, on_progress=on_progress, should_stop=self.test_break)
         except Cancelled:
             return
+        except ValueError as exc:           # e.g. an image larger than the GPU can hold (gpu/frame.py)
+            self._fail(str(exc))
+            return
         except (GpuError, ShaderError, RuntimeError) as exc:
             self._fail(f"Penumbra: GPU pipeline failed: {exc}")
             return

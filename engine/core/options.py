@@ -21,6 +21,16 @@ class Option:
     min: float | None = None
     max: float | None = None
     items: tuple = ()                   # enum: ((identifier, label, description), …)
+    soft_min: float | None = None       # slider range in Blender's UI (within min … max)
+    soft_max: float | None = None
+
+    def allowed(self) -> str:
+        """The allowed values in words, as messages and help print them."""
+        if self.items:
+            return "one of " + ", ".join(i[0] for i in self.items)
+        if isinstance(self.default, bool):
+            return "true/false"
+        return range_text(self.min, self.max)
 
     def check(self, value) -> None:
         """Raise ValueError naming the option when `value` is not allowed."""
@@ -34,7 +44,18 @@ class Option:
                 raise ValueError(f"Setting '{self.name}' expects true/false, got {value!r}")
             return
         if (self.min is not None and value < self.min) or (self.max is not None and value > self.max):
-            raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.min} … {self.max})")
+            raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.allowed()})")
+
+
+def range_text(lo=None, hi=None) -> str:
+    """'lo … hi', '≥ lo' or '≤ hi', numbers written without a needless '.0'."""
+    def num(x):
+        return str(int(x)) if float(x).is_integer() else str(x)
+    if lo is not None and hi is not None:
+        return f"{num(lo)} … {num(hi)}"
+    if lo is not None:
+        return f"≥ {num(lo)}"
+    return f"≤ {num(hi)}" if hi is not None else "any number"
 
 
 # identifier -> technique object (anything with `identifier`, `options` and `debug_passes`), in the order the
@@ -49,6 +70,11 @@ def known_options() -> dict[str, Option]:
 
 def technique_identifiers() -> list[str]:
     return list(CATALOGUE)
+
+
+def technique_options(identifier: str) -> tuple:
+    technique = CATALOGUE.get(identifier)
+    return tuple(technique.options) if technique is not None else ()
 
 
 def technique_debug_passes(identifier: str) -> tuple:

@@ -1,32 +1,47 @@
-"""Render settings as a plain dataclass: what the pipeline reads. `ui/properties.py` mirrors these fields as
-Blender properties (scene.penumbra) and converts with `settings_from_scene`; the command line fills them
-from its arguments. No bpy here."""
+"""Render settings as a plain dataclass: what the pipeline reads. No bpy here.
+
+One mechanism describes every setting: an `Option` (name, default, label, range). The settings every
+technique shares are declared in `SHARED` below and are RenderSettings fields; each technique declares its
+own (Technique.options), which RenderSettings keeps in `extras`. Blender's properties (ui/properties.py), the
+command line's `--set` and its help, and `validate` are all generated from these Options, so defaults and
+ranges live in one place.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
-from .options import known_options, technique_identifiers
+from .options import Option, known_options, technique_identifiers, technique_options
+
+# The settings every technique reads, in the order the UI and the help list them.
+SHARED = (
+    Option("shadow_map_size", 1024, "Shadow Map Size", "Texels along the longer side of each light's shadow map",
+           min=16, max=16384, soft_min=128, soft_max=4096),
+    Option("bias", 1.0, "Bias", "Depth bias in shadow-map texels, scaled by the receiver's slope",
+           min=0.0, max=100.0),
+    Option("normal_offset", 0.5, "Normal Offset", "Receiver offset along its normal, in shadow-map texels",
+           min=0.0, max=100.0),
+    Option("seed", 0, "Seed", "Seed of the techniques' sample patterns", min=0),
+    Option("debug_passes", False, "Debug Passes", "Also write the technique's debug passes"),
+)
+_SHARED = {o.name: o for o in SHARED}
+
+# Stored settings that were renamed: old name → new name. The load_post handler (ui/versioning.py) moves
+# values saved under an old name in a .blend, and `--set OLD=…` is accepted with a notice.
+RENAMED = {
+    "reference_samples": "averaged_light_samples",
+    "reference_weighted": "averaged_weighted",
+}
 
 
 @dataclass
 class RenderSettings:
     technique: str = "PCSS"
-    shadow_map_size: int = 1024          # texels along the longer side of every light's map
-    bias: float = 1.0                    # depth bias in texels, scaled by the receiver slope
-    normal_offset: float = 0.5           # receiver offset along its geometric normal, in texels
-    # PCF
-    pcf_radius: float = 2.0              # kernel radius in texels
-    pcf_taps: int = 5                    # taps per side of the square kernel (bilinear each)
-    # PCSS (Fernando 2005)
-    pcss_blocker_samples: int = 32
-    pcss_filter_samples: int = 64
-    pcss_max_radius: float = 0.1         # cap on search and filter radius, as a fraction of the map size
-    # REFERENCE: average of N hard shadow maps from stratified points on the light
-    reference_samples: int = 64
-    reference_weighted: bool = True      # weight each sample by its unoccluded contribution at the pixel
-    seed: int = 0
+    shadow_map_size: int = _SHARED["shadow_map_size"].default
+    bias: float = _SHARED["bias"].default
+    normal_offset: float = _SHARED["normal_offset"].default
+    seed: int = _SHARED["seed"].default
     # passes beyond Combined/Depth/Visibility/Unshadowed
-    debug_passes: bool = False
+    debug_passes: bool = _SHARED["debug_passes"].default
     # techniques record per-light statistics in FrameResult.stats["per_light"] (may cost a readback)
     collect_stats: bool = False
     # Settings a technique declares itself (Technique.options), by option name; unset ones take defaults.
@@ -48,6 +63,14 @@ class RenderSettings:
         except KeyError:
             raise KeyError(f"No technique declares an option '{name}'") from None
 
+    def effective(self) -> dict:
+        """The fields and the options of this technique, defaults filled in (plus any other option set): two
+        settings that render alike give equal dicts, whether an option was set to its default or left unset."""
+        values = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "extras"}
+        values.update({o.name: self.option(o.name) for o in technique_options(self.technique)})
+        values.update({k: v for k, v in self.extras.items() if k not in values})
+        return values
+
     @classmethod
     def field_names(cls) -> list[str]:
         return [f.name for f in fields(cls)]
@@ -57,22 +80,24 @@ class RenderSettings:
         identifiers = technique_identifiers()
         if self.technique not in identifiers:
             raise ValueError(f"Unknown technique '{self.technique}'; choose one of {', '.join(identifiers)}")
-        checks = [
-            ("shadow_map_size", 16 <= self.shadow_map_size <= 16384, "16 … 16384"),
-            ("reference_samples", 1 <= self.reference_samples <= 4096, "1 … 4096"),
-            ("pcf_taps", 1 <= self.pcf_taps <= 33, "1 … 33"),
-            ("pcf_radius", 0.0 <= self.pcf_radius <= 256.0, "0 … 256"),
-            ("pcss_blocker_samples", 1 <= self.pcss_blocker_samples <= 1024, "1 … 1024"),
-            ("pcss_filter_samples", 1 <= self.pcss_filter_samples <= 4096, "1 … 4096"),
-            ("bias", 0.0 <= self.bias <= 100.0, "0 … 100"),
-            ("pcss_max_radius", 0.0 < self.pcss_max_radius <= 1.0, "0 … 1"),
-            ("normal_offset", 0.0 <= self.normal_offset <= 100.0, "0 … 100"),
-        ]
-        for name, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"Setting '{name}' = {getattr(self, name)} is out of range ({allowed})")
+        for opt in SHARED:
+            opt.check(getattr(self, opt.name))
         options = known_options()
         for name, value in self.extras.items():
             if name not in options:
-                raise ValueError(f"Unknown setting '{name}'")
+                hint = f" (renamed '{RENAMED[name]}')" if name in RENAMED else ""
+                raise ValueError(f"Unknown setting '{name}'{hint}")
             options[name].check(value)
+
+
+def setting_options() -> list[Option]:
+    """Every setting a user can set (shared, then each technique's), as Options."""
+    return list(SHARED) + list(known_options().values())
+
+
+def setting_option(name: str) -> Option:
+    """The Option of a shared or a technique's setting."""
+    try:
+        return next(o for o in setting_options() if o.name == name)
+    except StopIteration:
+        raise KeyError(f"No setting '{name}'") from None

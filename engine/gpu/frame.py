@@ -14,6 +14,57 @@ from .programs import bind_samplers, mat_uniform, program, set_uniforms
 
 NO_OCCLUDER = 3.0e38    # depth-map value where nothing was drawn
 
+# Memory one frame needs per image pixel, estimated from what it allocates: on the GPU the G-buffer (four
+# RGBA32F targets and a depth buffer, 68 B) and the pipeline's sums (four RGBA32F, one RG32F, one R32F, 76 B);
+# on the host the readbacks and the finished passes at their peak (~112 B). A software GL (llvmpipe) keeps its
+# textures in host memory, so there both count against the RAM available.
+GPU_BYTES_PER_PIXEL = 144
+HOST_BYTES_PER_PIXEL = 112
+
+
+def image_size_problem(width: int, height: int, max_size: int, budget_bytes: float | None,
+                       bytes_per_pixel: int) -> str | None:
+    """Why a width×height frame cannot be allocated (the GL texture limit, or `budget_bytes` of memory at
+    `bytes_per_pixel`), with the largest image of the same aspect ratio that would fit; None if it fits."""
+    scale, reasons = 1.0, []
+    if max(width, height) > max_size:
+        scale = min(scale, max_size / max(width, height))
+        reasons.append(f"this GPU's largest texture is {max_size}×{max_size} (GL_MAX_TEXTURE_SIZE)")
+    need = float(width) * height * bytes_per_pixel
+    if budget_bytes is not None and need > budget_bytes:
+        scale = min(scale, (budget_bytes / need) ** 0.5)
+        reasons.append(f"it needs about {need / 2**30:.1f} GiB and {budget_bytes / 2**30:.1f} GiB is available")
+    if not reasons:
+        return None
+    fit_w, fit_h = max(1, int(width * scale)), max(1, int(height * scale))
+    return (f"image {width}×{height} is too large: {'; '.join(reasons)}. At this aspect ratio at most "
+            f"{fit_w}×{fit_h} fits (scene resolution or --resolution)")
+
+
+def available_host_bytes() -> float | None:
+    """MemAvailable from /proc/meminfo (Linux, the only platform the extension supports); None if unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    return None
+
+
+def check_image_size(ctx, width: int, height: int) -> None:
+    """Refuse (ValueError) a frame the context cannot hold, before anything is allocated."""
+    max_size = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+    viewport = ctx.info.get("GL_MAX_VIEWPORT_DIMS")
+    if viewport:
+        max_size = min(max_size, *[int(v) for v in viewport])
+    software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
+    per_pixel = HOST_BYTES_PER_PIXEL + (GPU_BYTES_PER_PIXEL if software else 0)
+    problem = image_size_problem(width, height, max_size, available_host_bytes(), per_pixel)
+    if problem:
+        raise ValueError(problem)
+
 
 class Timings(dict):
     """Milliseconds per stage, summed over lights and samples. `stage()` times a block after ctx.finish():
@@ -49,6 +100,7 @@ class Frame:
         self.snap = snap
         self.settings = settings
         self.width, self.height = snap.camera.width, snap.camera.height
+        check_image_size(ctx, self.width, self.height)
         self.timings = Timings(ctx)
         self._owned: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline

@@ -31,11 +31,11 @@ import subprocess
 import sys
 import time
 from contextlib import contextmanager
-from dataclasses import asdict
 
 import numpy as np
 
 from . import metrics, reference
+from ..blender.compat import eevee_engine_id
 from ..render import pipeline
 from ..core.files import write_atomic
 from ..core.settings import RenderSettings
@@ -56,7 +56,7 @@ METRIC_KEYS = ("mae_shadow", "mae", "rmse", "max_abs", "pixel_match", "ssim_shad
 STAGES = ("upload", "gbuffer", "readback", "irradiance", "light_view", "shadow_map", "visibility", "accumulate")
 
 _SHORT = {"shadow_map_size": "map", "pcf_radius": "radius", "pcf_taps": "taps",
-          "pcss_blocker_samples": "blocker", "pcss_filter_samples": "filter", "reference_samples": "samples"}
+          "pcss_blocker_samples": "blocker", "pcss_filter_samples": "filter", "averaged_light_samples": "samples"}
 
 
 def sweep_configs(identifier: str) -> list[dict]:
@@ -90,7 +90,7 @@ def configurations(identifier: str, base: RenderSettings, sweep: bool) -> list[t
     for changes in (sweep_configs(identifier) if sweep else [{}]):
         settings = base.with_(technique=identifier, **changes)
         settings.validate()
-        key = json.dumps(asdict(settings), sort_keys=True, default=str)
+        key = json.dumps(settings.effective(), sort_keys=True, default=str)
         if key not in seen:
             seen.add(key)
             out.append((config_label(changes), changes, settings))
@@ -220,7 +220,7 @@ def eevee_visibility(scene, *, samples: int, width: int, height: int, jitter: bo
     view_layer = view_layer or reference._pick_view_layer(scene)
     r = scene.render
     with reference.measurement_scene(scene, view_layer, width, height, "penumbra_eevee_") as (st, tmpdir):
-        st.set(r, "engine", "BLENDER_EEVEE")
+        st.set(r, "engine", eevee_engine_id())
         st.set(scene.eevee, "taa_render_samples", int(samples))
         st.set(scene.eevee, "use_raytracing", False)
         st.set(scene.eevee, "use_shadows", True)
@@ -415,7 +415,7 @@ def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, pee
                 v = result.passes["Visibility"][..., 0]
                 entry["rows"].append({
                     "kind": "ours", "technique": tid, "config": label, "changes": changes,
-                    "settings": asdict(settings), "repeats": len(timing["times_ms"]), **timing,
+                    "settings": settings.effective(), "repeats": len(timing["times_ms"]), **timing,
                     "metrics": {**metrics.compare(v, ref.visibility, ref.mask),
                                 "ssim_shaded": metrics.ssim_shaded(result.passes["Combined"],
                                                                    result.passes["Unshadowed"], ref.visibility)},

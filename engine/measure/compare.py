@@ -1,9 +1,12 @@
 """Penumbra against Cycles on one scene: render both, measure, and write what a person wants to look at
-(EXRs, and a PNG strip: our Visibility | Cycles' | the signed difference). Used by `python -m penumbra
-compare` and the "Compare with Cycles" operator."""
+(EXRs, a JSON of the numbers and a titled PNG: Visibility and Combined rows, ours | Cycles | the signed
+difference with its colour scale). Used by `python -m penumbra compare` and the "Compare with Cycles"
+operator, which runs `compare_steps` one stage per timer tick so Blender stays responsive and Esc cancels."""
 from __future__ import annotations
 
+import io
 import json
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -12,9 +15,16 @@ import numpy as np
 
 from ..core import exr
 from . import metrics, reference
+from .bench import _clean as json_safe
 from ..render import pipeline
-from ..core.files import write_atomic
+from ..core.files import check_output_folder, write_atomic
 from ..core.settings import RenderSettings
+
+# A preview comparison: the longest image side and the Cycles samples are capped, and no noise floor.
+PREVIEW_MAX_SIDE = 256
+PREVIEW_SAMPLES = 32
+# |ΔV| at which the difference panels saturate.
+DIFF_SATURATION = 0.25
 
 
 @dataclass
@@ -24,47 +34,151 @@ class Comparison:
     metrics: dict                       # engine.metrics.compare of Visibility vs the Cycles reference
     noise_floor: dict | None            # the same metrics between two Cycles seeds
     ours_ms: float                      # our frame (wall clock, shaders already compiled)
-    cycles_seconds: float               # Cycles time of the reference pair (from the cache if cached)
+    cycles_seconds: float               # ONE Cycles render (the shadowed one), as the bench times its peers
+    cycles_pair_seconds: float          # both reference renders (shadowed + unshadowed)
+    cycles_timed_by: str                # "shadowed render", or "half of the pair" for an old cache entry
     reference_samples: int
     unshadowed_rel_error: float         # mean |U − U_cycles| / U_cycles over lit pixels
+    resolution: tuple = (0, 0)
     warnings: list = field(default_factory=list)
+    undefined: str = ""                 # why the metrics are null, when they are
+    preview: str = ""                   # the caps of a preview comparison ("" for a full one)
+    files: list = field(default_factory=list)
+    passes: dict | None = field(default=None, repr=False)      # our frame's passes
+    ref: object = field(default=None, repr=False)               # the reference.ReferenceResult
 
     def summary(self) -> str:
         m, n = self.metrics, self.noise_floor or {}
-        floor = f" (Cycles noise floor {n.get('mae_shadow', float('nan')):.4f})" if n else ""
-        return (f"{self.scene} {self.technique}: mae_shadow {m['mae_shadow']:.4f}{floor}, rmse {m['rmse']:.4f}, "
-                f"max_abs {m['max_abs']:.3f}, pixel_match {m['pixel_match']:.4f} over {m['n_shadow']} shadow px, "
-                f"SSIM (shaded) {m['ssim_shaded']:.4f}; "
-                f"ours {self.ours_ms:.1f} ms vs Cycles {self.cycles_seconds:.2f} s "
-                f"({self.reference_samples} spp); Unshadowed rel. error {self.unshadowed_rel_error:.4f}")
+        if self.undefined and not _finite(m.get("mae_shadow")) and not _finite(m.get("rmse")):
+            head = f"{self.scene} {self.technique}: no error measured ({self.undefined})"
+        else:
+            floor = f" (Cycles noise floor {_fmt(n.get('mae_shadow'), '.4f')})" if n else ""
+            head = (f"{self.scene} {self.technique}: mae_shadow {_fmt(m['mae_shadow'], '.4f')} over "
+                    f"{m['n_shadow']} shadow px{floor}, rmse {_fmt(m['rmse'], '.4f')}, "
+                    f"max_abs {_fmt(m['max_abs'], '.3f')}, pixel_match {_fmt(m['pixel_match'], '.4f')} over "
+                    f"{m['n_mask']} lit px, SSIM (shaded) {_fmt(m.get('ssim_shaded'), '.4f')}"
+                    + (f" [{self.undefined}]" if self.undefined else ""))
+        speed = (f"ours {self.ours_ms:.1f} ms vs Cycles {self.cycles_seconds:.2f} s for one render "
+                 f"({self.reference_samples} spp, {self.cycles_timed_by})")
+        tail = f"; Unshadowed rel. error {_fmt(self.unshadowed_rel_error, '.4f')}"
+        if self.preview:
+            tail += f"; PREVIEW: {self.preview}"
+        return f"{head}; {speed}{tail}"
+
+    def as_json(self) -> dict:
+        """JSON-safe (NaN → null, with `undefined` saying why)."""
+        return json_safe({
+            "scene": self.scene, "technique": self.technique, "resolution": list(self.resolution),
+            "metrics": self.metrics, "noise_floor": self.noise_floor, "ours_ms": self.ours_ms,
+            "cycles_seconds": self.cycles_seconds, "cycles_timed_by": self.cycles_timed_by,
+            "cycles_pair_seconds": self.cycles_pair_seconds,
+            "reference_samples": self.reference_samples, "unshadowed_rel_error": self.unshadowed_rel_error,
+            "undefined": self.undefined or None, "preview": self.preview or None, "warnings": self.warnings})
 
 
-def compare(scene, settings: RenderSettings, *, samples: int = 256, with_noise_floor: bool = True,
-            out_dir: str | None = None, repeats: int = 1, on_progress=None) -> Comparison:
-    """Render `scene` (a bpy scene) with Penumbra and Cycles and measure the difference."""
+def _finite(x) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x)
+
+
+def _fmt(x, spec: str) -> str:
+    return format(x, spec) if _finite(x) else "n/a"
+
+
+def compare(scene, settings: RenderSettings, *, on_progress=None, **kwargs) -> Comparison:
+    """Render `scene` (a bpy scene) with Penumbra and Cycles and measure the difference; see
+    `compare_steps` for the keyword arguments. `on_progress(fraction, message)` follows every stage."""
+    steps = compare_steps(scene, settings, **kwargs)
+    while True:
+        try:
+            fraction, message = next(steps)
+        except StopIteration as done:
+            return done.value
+        if on_progress:
+            on_progress(fraction, message)
+
+
+def preview_caps(width: int, height: int, samples: int) -> tuple[int, int, int]:
+    """The preview's resolution (longest side ≤ PREVIEW_MAX_SIDE, aspect kept) and samples."""
+    scale = min(1.0, PREVIEW_MAX_SIDE / max(width, height))
+    return max(1, round(width * scale)), max(1, round(height * scale)), min(samples, PREVIEW_SAMPLES)
+
+
+def compare_steps(scene, settings: RenderSettings, *, samples: int = 256, with_noise_floor: bool = True,
+                  out_dir: str | None = None, repeats: int = 1, preview: bool = False):
+    """A generator: does one stage (our frames, the Cycles pair, the second seed, metrics and files) per
+    `next()`, yielding (fraction done, what comes next); its return value is the Comparison. A caller can
+    stop between stages (Esc in Blender, Ctrl-C on the command line): the scene is restored either way.
+    `preview`: longest side ≤ PREVIEW_MAX_SIDE and ≤ PREVIEW_SAMPLES Cycles samples, no noise floor."""
     import bpy
+    from ..blender.compat import SettingsRecorder
     from ..blender.extract import extract
-    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
-    settings = settings.with_(debug_passes=True)       # the Irradiance pass checks our Unshadowed light
-    result = pipeline.render(snap, settings, on_progress=on_progress)     # first frame compiles shaders
-    ours_ms = []
-    for _ in range(max(repeats, 1)):
-        start = time.perf_counter()
-        result = pipeline.render(snap, settings)
-        ours_ms.append((time.perf_counter() - start) * 1000.0)
-    ref = reference.cycles_visibility(scene, samples=samples, width=snap.camera.width,
-                                      height=snap.camera.height)
-    floor = reference.noise_floor(scene, samples, width=snap.camera.width,
-                                  height=snap.camera.height) if with_noise_floor else None
+    if out_dir:
+        check_output_folder(out_dir)            # refuse before any render (OutputError, one line)
+    st = SettingsRecorder()
+    try:
+        r = scene.render
+        pct = r.resolution_percentage / 100.0
+        width, height = max(1, int(r.resolution_x * pct)), max(1, int(r.resolution_y * pct))
+        caps = ""
+        if preview:
+            pw, ph, ps = preview_caps(width, height, samples)
+            caps = (f"{pw}×{ph} (scene {width}×{height}), {ps} Cycles spp (asked {samples}), no noise floor")
+            st.set(r, "resolution_x", pw)
+            st.set(r, "resolution_y", ph)
+            st.set(r, "resolution_percentage", 100)
+            samples, with_noise_floor = ps, False
+        yield 0.0, "Penumbra frame"
+        snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+        settings = settings.with_(debug_passes=True)   # the Irradiance pass checks our Unshadowed light
+        result = pipeline.render(snap, settings)       # the first frame compiles shaders: untimed
+        ours_ms = []
+        for _ in range(max(repeats, 1)):
+            start = time.perf_counter()
+            result = pipeline.render(snap, settings)
+            ours_ms.append((time.perf_counter() - start) * 1000.0)
+        w, h = snap.camera.width, snap.camera.height
+        share = 0.45 if with_noise_floor else 0.85
+        yield 0.05, f"Cycles reference, {samples} spp (shadowed + unshadowed)"
+        ref = reference.cycles_visibility(scene, samples=samples, width=w, height=h)
+        floor = None
+        if with_noise_floor:
+            yield 0.05 + share, f"Cycles noise floor, second seed, {samples} spp"
+            floor = reference.noise_floor(scene, samples, width=w, height=h)
+        yield 0.05 + (2 if with_noise_floor else 1) * share, "metrics and files"
+    finally:
+        st.restore()
+    cmp = measure(snap, settings, result, ref, floor, float(np.median(ours_ms)), samples)
+    cmp.preview = caps
+    if out_dir:
+        cmp.files = write_outputs(out_dir, cmp, scene)
+    return cmp
+
+
+def measure(snap, settings, result, ref, floor, ours_ms: float, samples: int) -> Comparison:
+    """The numbers of one comparison; metrics that have no pixels to be taken over are NaN (null in JSON) and
+    `undefined` says why."""
     v = result.passes["Visibility"][..., 0]
     m = metrics.compare(v, ref.visibility, ref.mask)
-    m["ssim_shaded"] = metrics.ssim_shaded(result.passes["Combined"], result.passes["Unshadowed"], ref.visibility)
-    cmp = Comparison(snap.name, settings.technique, m, floor, float(np.median(ours_ms)), ref.seconds, samples,
-                     unshadowed_error(result.passes["Irradiance"] / np.pi, ref.unshadowed, ref.mask),
-                     result.warnings)
-    if out_dir:
-        write_outputs(out_dir, cmp, result.passes, ref)
-    return cmp
+    undefined = ""
+    if not snap.lights:
+        undefined = f"scene '{snap.name}' has no lights: there is no shadow to compare"
+    elif m["n_mask"] == 0:
+        undefined = "no visible pixel receives light in the Cycles reference: there is no shadow to compare"
+    elif m["n_shadow"] == 0:
+        undefined = "mae_shadow: neither image has a shadow or penumbra pixel"
+    if m["n_mask"] == 0:
+        m["ssim_shaded"] = float("nan")     # black against black says nothing
+    else:
+        m["ssim_shaded"] = metrics.ssim_shaded(result.passes["Combined"], result.passes["Unshadowed"],
+                                               ref.visibility)
+    if ref.shadowed_seconds is not None:
+        one, timed_by = ref.shadowed_seconds, "shadowed render"
+    else:
+        one, timed_by = ref.seconds / 2.0, "half of the cached pair"
+    return Comparison(snap.name, settings.technique, m, floor, ours_ms, one, ref.seconds, timed_by, samples,
+                      unshadowed_error(result.passes["Irradiance"] / np.pi, ref.unshadowed, ref.mask),
+                      resolution=(snap.camera.width, snap.camera.height), warnings=list(result.warnings),
+                      undefined=undefined, passes=result.passes, ref=ref)
 
 
 def unshadowed_error(ours: np.ndarray, cycles: np.ndarray, mask: np.ndarray) -> float:
@@ -78,31 +192,121 @@ def unshadowed_error(ours: np.ndarray, cycles: np.ndarray, mask: np.ndarray) -> 
     return float(np.mean(np.abs(a[lit] - b[lit]) / b[lit]))
 
 
-def write_outputs(out_dir: str, cmp: Comparison, passes: dict, ref) -> None:
-    os.makedirs(out_dir, exist_ok=True)
+def write_outputs(out_dir: str, cmp: Comparison, scene=None) -> list[str]:
+    """The JSON first (the numbers survive whatever fails after it), then the EXRs and the PNG; each file is
+    written atomically, so what was written is complete. Returns the paths."""
+    passes, ref = cmp.passes, cmp.ref
     stem = os.path.join(out_dir, f"{cmp.scene}_{cmp.technique.lower()}")
-    exr.write(stem + ".exr", passes, {"penumbra:technique": cmp.technique})
-    exr.write(stem + "_cycles.exr", {"Visibility": ref.visibility[..., None].astype(np.float32),
-                                     "Combined": np.dstack([ref.shadowed, np.ones(ref.visibility.shape)])
-                                     .astype(np.float32)})
-    exr.write_png(stem + "_compare.png", comparison_strip(passes["Visibility"][..., 0], ref.visibility,
-                                                          ref.mask))
-    write_atomic(stem + ".json", json.dumps({
-        "scene": cmp.scene, "technique": cmp.technique, "metrics": cmp.metrics, "noise_floor": cmp.noise_floor,
-        "ours_ms": cmp.ours_ms, "cycles_seconds": cmp.cycles_seconds, "reference_samples": cmp.reference_samples,
-        "unshadowed_rel_error": cmp.unshadowed_rel_error}, indent=2))
+    paths = [stem + ".json", stem + ".exr", stem + "_cycles.exr", stem + "_compare.png"]
+    write_atomic(paths[0], json.dumps(cmp.as_json(), indent=2, allow_nan=False))
+    exr.write(paths[1], passes, {"penumbra:technique": cmp.technique})
+    exr.write(paths[2], {"Visibility": ref.visibility[..., None].astype(np.float32),
+                         "Combined": np.dstack([ref.shadowed, np.ones(ref.visibility.shape)]).astype(np.float32)})
+    write_comparison_png(paths[3], cmp, scene)
+    return paths
 
 
-def comparison_strip(v: np.ndarray, v_ref: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """(H, 3W+8, 3) uint8, top row first: ours | Cycles | difference (red: we are darker, blue: lighter)."""
-    def grey(x):
-        g = (np.clip(x, 0, 1) * 255 + 0.5).astype(np.uint8)
-        return np.repeat(np.flipud(g)[..., None], 3, axis=2)
-    d = np.flipud(np.where(mask, v - v_ref, 0.0))
-    scale = 1.0 / 0.25            # ±0.25 visibility saturates the colour
-    diff = np.full(d.shape + (3,), 255, np.uint8)
-    diff[..., 1] = (255 * (1 - np.clip(np.abs(d) * scale, 0, 1))).astype(np.uint8)
-    diff[..., 0] = np.where(d > 0, diff[..., 1], 255)
-    diff[..., 2] = np.where(d < 0, diff[..., 1], 255)
-    gap = np.full((v.shape[0], 4, 3), 64, np.uint8)
-    return np.concatenate([grey(v), gap, grey(v_ref), gap, diff], axis=1)
+def write_comparison_png(path: str, cmp: Comparison, scene=None) -> None:
+    """The titled figure (`comparison_png`), or where matplotlib is missing (Blender's own Python ships
+    without it) the same six panels untitled, with a warning saying how to read them."""
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        ours, theirs, diffs = _panels(cmp, scene)[:3]
+        gap = np.full((ours[0].shape[0], 4, 3), 64, np.uint8)
+        rows = [np.concatenate([_grey8(o) if o.ndim == 2 else o, gap, _grey8(t) if t.ndim == 2 else t, gap,
+                                _diff8(d)], axis=1) for o, t, d in zip(ours, theirs, diffs)]
+        exr.write_png(path, np.concatenate([rows[0], np.full((4, rows[0].shape[1], 3), 64, np.uint8), rows[1]]))
+        cmp.warnings.append(f"matplotlib is not installed: {os.path.basename(path)} has no titles; rows "
+                            f"Visibility and Combined, columns ours | Cycles | difference (red: Penumbra darker, "
+                            f"blue: lighter, ±{DIFF_SATURATION:g} saturates)")
+        return
+    write_atomic(path, comparison_png(cmp, scene))
+
+
+def _grey8(x: np.ndarray) -> np.ndarray:
+    g = (np.clip(np.nan_to_num(x), 0, 1) * 255 + 0.5).astype(np.uint8)
+    return np.repeat(g[..., None], 3, axis=2)
+
+
+def _diff8(d: np.ndarray) -> np.ndarray:
+    """Signed difference → white (0), red (negative) or blue (positive), saturating at ±DIFF_SATURATION;
+    grey where undefined."""
+    t = np.clip(np.abs(np.nan_to_num(d)) / DIFF_SATURATION, 0, 1)
+    fade = (255 * (1 - t)).astype(np.uint8)
+    out = np.full(d.shape + (3,), 255, np.uint8)
+    out[..., 1] = fade
+    out[..., 0] = np.where(d > 0, fade, 255)
+    out[..., 2] = np.where(d < 0, fade, 255)
+    out[~np.isfinite(d)] = 208
+    return out
+
+
+def _panels(cmp: Comparison, scene=None):
+    """Rows (Visibility, Combined) of ours, Cycles and the signed difference, row 0 at the top; and the view
+    transform's name. Combined goes through `scene`'s colour management."""
+    passes, ref = cmp.passes, cmp.ref
+    v, v_ref, mask = passes["Visibility"][..., 0], ref.visibility, ref.mask
+    target = np.dstack([passes["Unshadowed"][..., :3] * v_ref[..., None], np.ones(v.shape)])
+    if scene is not None:
+        from ..blender.compat import display_rgb8
+        ours_rgb, cycles_rgb = display_rgb8(passes["Combined"], scene), display_rgb8(target, scene)
+        view = scene.view_settings.view_transform
+    else:
+        ours_rgb, cycles_rgb = exr.to_srgb8(passes["Combined"]), exr.to_srgb8(target)
+        view = "Standard"
+    d_vis = np.flipud(np.where(mask, v - v_ref, np.nan))
+    luma = np.asarray(metrics.LUMA)
+    d_comb = (ours_rgb.astype(np.float64) @ luma - cycles_rgb.astype(np.float64) @ luma) / 255.0
+    d_comb = np.where(np.flipud(mask), d_comb, np.nan)
+    return ((np.flipud(v), ours_rgb), (np.flipud(v_ref), cycles_rgb), (d_vis, d_comb), view)
+
+
+def comparison_png(cmp: Comparison, scene=None) -> bytes:
+    """The comparison figure as PNG bytes: a Visibility row and a Combined row, each ours | Cycles | signed
+    difference (red: Penumbra darker, blue: lighter, saturating at ±DIFF_SATURATION), with titles, the
+    colour scale and the numbers. Combined is shown through `scene`'s view transform (Blender's colour
+    management); its Cycles panel is our shading times Cycles' visibility, which is what SSIM (shaded) is
+    measured against (the reference itself is rendered white, with no materials)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    ours, theirs, diffs, view = _panels(cmp, scene)
+    h, w = ours[0].shape
+    fig = Figure(figsize=(3 * 3.2 + 0.8, 2 * 3.2 * h / w + 1.2), dpi=110)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 3)
+    m = cmp.metrics
+    rows = [
+        (ours[0], theirs[0], diffs[0], "Visibility", "ΔV = ours − Cycles"),
+        (ours[1], theirs[1], diffs[1], f"Combined ({view})", "Δ display luminance"),
+    ]
+    for r, (ours, theirs, diff, label, diff_label) in enumerate(rows):
+        grey = dict(cmap="gray", vmin=0.0, vmax=1.0) if ours.ndim == 2 else {}
+        axes[r, 0].imshow(ours, interpolation="nearest", **grey)
+        axes[r, 0].set_title(f"Penumbra {cmp.technique}: {label}", fontsize=8)
+        axes[r, 1].imshow(theirs, interpolation="nearest", **grey)
+        axes[r, 1].set_title(f"Cycles {cmp.reference_samples} spp: {label}" if r == 0 else
+                             "Cycles visibility × our shading", fontsize=8)
+        im = axes[r, 2].imshow(diff, cmap="RdBu", vmin=-DIFF_SATURATION, vmax=DIFF_SATURATION,
+                               interpolation="nearest")
+        axes[r, 2].set_facecolor("#d0d0d0")     # unlit pixels (outside the reference mask): grey
+        axes[r, 2].set_title(diff_label, fontsize=8)
+        bar = fig.colorbar(im, ax=axes[r, 2], fraction=0.046, pad=0.03,
+                           ticks=[-DIFF_SATURATION, 0.0, DIFF_SATURATION])
+        bar.ax.tick_params(labelsize=6)
+        bar.set_label(f"red: Penumbra darker, blue: lighter (±{DIFF_SATURATION:g} saturates)", fontsize=6)
+        for ax in axes[r]:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    numbers = (f"{cmp.scene} {w}×{h}: mae_shadow {_fmt(m['mae_shadow'], '.4f')} over {m['n_shadow']} px, "
+               f"noise floor {_fmt((cmp.noise_floor or {}).get('mae_shadow'), '.4f')}, "
+               f"ours {cmp.ours_ms:.1f} ms, Cycles {cmp.cycles_seconds:.2f} s / render")
+    if cmp.undefined:
+        numbers += f"\n{cmp.undefined}"
+    if cmp.preview:
+        numbers += f"\nPREVIEW: {cmp.preview}"
+    fig.suptitle(numbers, fontsize=8)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    return buf.getvalue()

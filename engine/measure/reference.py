@@ -44,6 +44,7 @@ import hashlib
 import os
 import shutil
 import tempfile
+import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -52,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from .metrics import LUMA, compare
+from ..blender.compat import SettingsRecorder, set_file_format
 
 # Bump when the rendering method changes, so old cache entries are not reused.
 CACHE_VERSION = 1
@@ -63,6 +65,11 @@ DEFAULT_THRESHOLD = 1e-3
 # Number of Cycles renders actually run in this process (cache hits do not count). Tests read it.
 render_count = 0
 
+# Set by a SIGINT handler (the command line's): Cycles renders from a Python callback and Blender swallows a
+# KeyboardInterrupt raised there (it logs it and writes what was rendered), so every render is checked
+# against this flag afterwards and an interrupted one is neither returned nor cached.
+interrupted = threading.Event()
+
 
 @dataclass
 class ReferenceResult:
@@ -73,6 +80,8 @@ class ReferenceResult:
     shadowed    (H, W, 3) float32 linear RGB, the normal direct-light render
     unshadowed  (H, W, 3) float32 linear RGB, the same with no shadow casters
     seconds     Cycles wall time of the two renders (of the original renders for a cache hit)
+    shadowed_seconds  wall time of the shadowed render alone, the one a user's render would cost (None for
+                cache entries written before it was recorded)
     """
 
     visibility: np.ndarray
@@ -85,6 +94,7 @@ class ReferenceResult:
     threshold: float = DEFAULT_THRESHOLD
     cached: bool = False
     key: str = ""
+    shadowed_seconds: float | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -223,29 +233,8 @@ def scene_key(scene, *, samples: int, seed: int, width: int, height: int, filter
 # Rendering
 
 
-class _Settings:
-    """Records attribute changes so they can be undone in reverse order, even after an error."""
-
-    def __init__(self):
-        self._undo: list[tuple[object, str, object]] = []
-
-    def set(self, obj, attr: str, value):
-        old = getattr(obj, attr)
-        if isinstance(old, (list, tuple)) or hasattr(old, "to_tuple"):
-            old = tuple(old)
-        self._undo.append((obj, attr, old))
-        setattr(obj, attr, value)
-
-    def restore(self):
-        errors = []
-        for obj, attr, old in reversed(self._undo):
-            try:
-                setattr(obj, attr, old)
-            except Exception as exc:  # keep restoring the rest
-                errors.append(f"{attr}: {exc}")
-        self._undo.clear()
-        if errors:
-            raise RuntimeError("could not restore scene settings: " + "; ".join(errors))
+# Scene-settings recorder (undone in reverse, also after an error), shared with the blender layer.
+_Settings = SettingsRecorder
 
 
 def _pick_view_layer(scene):
@@ -302,10 +291,7 @@ def set_measurement_output(st: "_Settings", scene, world, material, view_layer, 
     st.set(r, "use_file_extension", True)
     st.set(r, "use_single_layer", True)
     img = r.image_settings
-    # media_type before file_format (restored in reverse: file_format is undone first, then media_type,
-    # which is the order Blender needs when going back to a single-layer format).
-    st.set(img, "media_type", "MULTI_LAYER_IMAGE")
-    st.set(img, "file_format", "OPEN_EXR_MULTILAYER")
+    set_file_format(st, img, "OPEN_EXR_MULTILAYER")      # media_type first where Blender has one (5.0)
     st.set(img, "color_depth", "32")
     st.set(img, "exr_codec", "ZIP")
     for layer in scene.view_layers:
@@ -346,7 +332,7 @@ def measurement_scene(scene, view_layer, width: int, height: int, prefix: str):
 
 
 def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_width, view_layer):
-    """Render shadowed and unshadowed images; returns (shadowed, unshadowed, seconds)."""
+    """Render shadowed and unshadowed images; returns (shadowed, unshadowed, [seconds of each])."""
     import bpy
 
     global render_count
@@ -371,7 +357,7 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
                 st.set(ob, "visible_camera", False)  # the light's own emitter must not appear in the image
 
         images = []
-        seconds = 0.0
+        seconds = []
         for unshadowed in (False, True):
             if unshadowed:
                 for ob in scene.objects:
@@ -381,7 +367,9 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
             st.set(r, "filepath", path)
             t0 = time.perf_counter()
             bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
-            seconds += time.perf_counter() - t0
+            seconds.append(time.perf_counter() - t0)
+            if interrupted.is_set():
+                raise KeyboardInterrupt("Cycles render interrupted")
             render_count += 1
             if not os.path.exists(path):
                 raise RuntimeError(f"Cycles wrote no image to {path}")
@@ -421,25 +409,26 @@ def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: i
             with np.load(path) as data:
                 shadowed, unshadowed = data["shadowed"], data["unshadowed"]
                 seconds = float(data["seconds"])
+                one = float(data["shadowed_seconds"]) if "shadowed_seconds" in data.files else None
             vis, mask = visibility_from(shadowed, unshadowed, threshold)
             return ReferenceResult(vis, mask, shadowed, unshadowed, seconds, int(samples), int(seed),
-                                   threshold, cached=True, key=key)
+                                   threshold, cached=True, key=key, shadowed_seconds=one)
         except Exception:
             pass  # unreadable entry: render again and overwrite it
 
-    shadowed, unshadowed, seconds = _render_pair(scene, samples=samples, seed=seed, width=width,
+    shadowed, unshadowed, each = _render_pair(scene, samples=samples, seed=seed, width=width,
                                                  height=height, filter_type=filter_type,
                                                  filter_width=filter_width,
                                                  view_layer=view_layer)
     if use_cache:
         cdir.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
-        np.savez_compressed(tmp, shadowed=shadowed, unshadowed=unshadowed, seconds=np.float64(seconds),
-                            samples=np.int64(samples), seed=np.int64(seed))
+        np.savez_compressed(tmp, shadowed=shadowed, unshadowed=unshadowed, seconds=np.float64(sum(each)),
+                            shadowed_seconds=np.float64(each[0]), samples=np.int64(samples), seed=np.int64(seed))
         os.replace(tmp, path)  # atomic: concurrent readers never see a partial file
     vis, mask = visibility_from(shadowed, unshadowed, threshold)
-    return ReferenceResult(vis, mask, shadowed, unshadowed, seconds, int(samples), int(seed), threshold,
-                           cached=False, key=key)
+    return ReferenceResult(vis, mask, shadowed, unshadowed, float(sum(each)), int(samples), int(seed),
+                           threshold, cached=False, key=key, shadowed_seconds=each[0])
 
 
 def noise_floor(scene=None, samples: int = 256, *, seeds: tuple[int, int] = (0, 1), **kwargs) -> dict:

@@ -37,7 +37,7 @@ from ..core.snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapsh
 # lit stays lit) and all finiteness limits do.
 IGNORES_LIGHT_SIZE = frozenset({"HARD", "PCF"})
 
-BASE_SETTINGS = dict(shadow_map_size=1024, reference_samples=32)
+BASE_SETTINGS = dict(shadow_map_size=1024, averaged_light_samples=32)
 SHADOW_LEVEL = 0.99             # V below this: shadow or penumbra (where the error metrics look)
 IMAGE = 64                      # pixels per side of every case's image
 
@@ -430,6 +430,30 @@ CASES: list[Case] = [
 ]
 CASE_BY_NAME = {c.name: c for c in CASES}
 
+# Documented limits and the deliberate fp16 failure: (case, technique) → why it fails. The tests mark them
+# strict xfails; `python -m penumbra stress` lists them apart and exits 0 when only they fail.
+_BIAS_LEAK = ("default bias (1 texel + 1 texel normal offset ≈ 1e-3 m here) exceeds the 1e-4 m gap: light "
+              "leaks under the touching occluder (V = 1 in the true umbra); bias 0.05 texel fixes it")
+_SSM_NEAR_LIGHT = ("SSM renders one perspective occluder map from the light centre, capped at ±80°: the part of "
+                   "an occluder a few mm from the light plane (or around the light) that matters falls outside "
+                   "it, so those receivers stay lit")
+EXPECTED_FAILURES = {
+    **{("touch_plane", t): _BIAS_LEAK for t in ("HARD", "PCF", "PCSS", "REFERENCE", "BACKPROJECTION")},
+    ("near_light", "SSM"): _SSM_NEAR_LIGHT,
+    ("light_in_box", "SSM"): _SSM_NEAR_LIGHT,
+    ("grazing", "SSM"): ("SSM at its default 256² occluder map: at 89° the micro-patches of neighbouring texels "
+                         "leave gaps (Atty et al. §4.1.2) and ~3 % of the umbra leaks; it passes at 512²"),
+    ("fp16_accumulation", "SSM"): ("deliberate: half-float blending stalls the umbra at V ≈ 0.5 (Atty et al. "
+                                   "appendix A); fp16_batched and the float32 default pass"),
+    ("big_light", "PCSS"): ("PCSS with a light 10× the occluder: the mean blocker depth over a search region "
+                            "capped at pcss_max_radius (0.1 of the map) over-darkens the core (V_min 0 where the "
+                            "true minimum is 0.63); mae_shadow 0.085 > 0.06. A limit of the method, not a bug"),
+    ("light_in_box", "PCSS"): ("light inside a closed box: the near plane sits at the light, so PCSS's search "
+                               "and filter kernels reach past the map's edge, where texels count as empty "
+                               "(max V 0.16 where it must be 0). Clamping to the edge instead puts false "
+                               "shadows on receivers near the window's border (grazing, eight_lights)"),
+}
+
 
 # ----------------------------------------------------------------------------------------------------------
 # CPU oracle: ray-traced, irradiance-weighted visibility (float64)
@@ -610,8 +634,13 @@ class Runner:
             failures.append(f"class_err>{case.class_tol:g}")
         if case.limit == "hard" and not (row.get("pixel_match", 0.0) >= case.match_tol):
             failures.append(f"pixel_match<{case.match_tol:g}")
+        expected = EXPECTED_FAILURES.get((case.name, technique))
         if not row["status"]:
-            row["status"] = "FAIL" if failures else "ok"
+            if expected:        # a documented limit: failing is what is expected, passing is news
+                row["status"] = "xfail" if failures else "XPASS"
+                row["expected"] = expected
+            else:
+                row["status"] = "FAIL" if failures else "ok"
         row["notes"] = "; ".join(failures + notes)
         return row
 
@@ -695,6 +724,13 @@ def run(techniques=None, cases=None, settings_overrides: dict | None = None, *, 
     """Every case × technique. `techniques`/`cases`: names (default all); `progress(text)` per case."""
     from ..render.pipeline import TECHNIQUES
     techniques = list(techniques or TECHNIQUES)
+    unknown = [t for t in techniques if t not in TECHNIQUES]
+    if unknown:
+        raise ValueError(f"unknown technique {', '.join(unknown)}; choose from {', '.join(TECHNIQUES)}")
+    unknown = [c for c in (cases or ()) if isinstance(c, str) and c not in CASE_BY_NAME]
+    if unknown:
+        raise ValueError(f"unknown stress case {', '.join(unknown)}; the cases are {', '.join(CASE_BY_NAME)} "
+                         "(`stress --list` describes them)")
     cases = [CASE_BY_NAME[c] if isinstance(c, str) else c for c in (cases or CASES)]
     runner = Runner(settings_overrides)
     rows = []
@@ -706,30 +742,50 @@ def run(techniques=None, cases=None, settings_overrides: dict | None = None, *, 
             rows.append(row)
         if progress:
             done = [r for r in rows if r["case"] == case.name]
-            bad = sum(r["status"] != "ok" for r in done)
-            progress(f"[{i + 1}/{len(cases)}] {case.name}: {len(done) - bad}/{len(done)} ok "
+            bad = sum(r["status"] not in ("ok", "xfail") for r in done)
+            progress(f"[{i + 1}/{len(cases)}] {case.name}: {len(done) - bad}/{len(done)} ok or expected "
                      f"({time.perf_counter() - t0:.1f}s)")
     return rows
 
 
 def format_table(rows: list[dict]) -> str:
-    cols = [("case", 14, "s"), ("technique", 9, "s"), ("nonfinite", 9, "d"), ("v_min", 7, ".4f"),
-            ("v_max", 7, ".4f"), ("metric", 16, "s"), ("error", 9, ".2e"), ("tol", 6, "g"),
-            ("class_err", 9, ".2e"), ("time_ms", 8, ".0f"), ("status", 6, "s")]
-    head = " ".join(f"{name:<{w}}" if f == "s" else f"{name:>{w}}" for name, w, f in cols) + "  notes"
+    """One line per row; every column as wide as its longest cell or name, so nothing is cut."""
+    cols = [("case", "s"), ("technique", "s"), ("nonfinite", "d"), ("v_min", ".4f"), ("v_max", ".4f"),
+            ("metric", "s"), ("error", ".2e"), ("tol", "g"), ("class_err", ".2e"), ("time_ms", ".0f"),
+            ("status", "s")]
+
+    def cell(v, f):
+        if f == "s":
+            return str(v)
+        if v is None or v == "" or (isinstance(v, float) and math.isnan(v)):
+            return "-"
+        if isinstance(v, str):
+            return v
+        return format(v, f)
+    table = [[cell(r.get(name, ""), f) for name, f in cols] for r in rows]
+    widths = [max([len(name)] + [len(line[i]) for line in table]) for i, (name, _) in enumerate(cols)]
+
+    def join(cells):
+        return " ".join(c.ljust(w) if f == "s" else c.rjust(w) for c, w, (_, f) in zip(cells, widths, cols))
+    head = join([name for name, _ in cols]) + "  notes"
     lines = [head, "-" * len(head)]
-    for r in rows:
-        cells = []
-        for name, w, f in cols:
-            v = r.get(name, "")
-            if f == "s":
-                cells.append(f"{str(v)[:w]:<{w}}")
-            elif isinstance(v, str) or (isinstance(v, float) and math.isnan(v)):
-                cells.append(f"{str(v) or '-':>{w}}"[:w])
-            else:
-                cells.append(f"{v:>{w}{f}}")
-        lines.append(" ".join(cells) + "  " + r.get("notes", ""))
+    lines += [join(cells) + "  " + r.get("notes", "") for cells, r in zip(table, rows)]
     return "\n".join(lines)
 
 
+def format_cases() -> str:
+    """The case list for `stress --list`: name, limit, what it builds, and its expected failures."""
+    width = max(len(c.name) for c in CASES)
+    lines = []
+    for c in CASES:
+        xfail = [t for (name, t) in EXPECTED_FAILURES if name == c.name]
+        lines.append(f"{c.name:<{width}}  {c.limit:<9} {c.description}"
+                     + (f"  [expected to fail: {', '.join(xfail)}]" if xfail else ""))
+    return "\n".join(lines)
 
+
+def verdict(rows: list[dict]) -> tuple[list[dict], list[dict], int]:
+    """(unexpected results: FAIL, CRASH or XPASS; expected failures; exit status 0 or 1)."""
+    bad = [r for r in rows if r["status"] not in ("ok", "xfail")]
+    expected = [r for r in rows if r["status"] == "xfail"]
+    return bad, expected, 1 if bad else 0

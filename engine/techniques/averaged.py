@@ -1,5 +1,6 @@
-"""REFERENCE: the average of N hard shadow maps rendered from stratified points of the light — the
-"1024 shadow maps" ground truth the soft-shadow-map papers compare against (e.g. Atty et al. §4.1).
+"""Averaged shadow maps (user-facing identifier REFERENCE): the average of N hard shadow maps rendered from
+stratified points of the light — the "1024 shadow maps" ground truth the soft-shadow-map papers compare
+against (e.g. Atty et al. §4.1). Penumbra's own ground truth is Cycles (engine/measure/reference.py).
 
 Sample points: an R2 low-discrepancy set over the square, mapped to the disk by Shirley & Chiu's concentric
 map for round lights. Sphere lights are sampled over their great disk facing the receivers (the view's XY
@@ -12,7 +13,7 @@ import numpy as np
 
 from ..core import lightview
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN, Light
-from .base import MAP_SIZE_SWEEP, Technique
+from .base import MAP_SIZE_SWEEP, Option, Technique
 
 
 def unit_square_samples(n: int, seed: int = 0) -> np.ndarray:
@@ -64,17 +65,25 @@ class AveragedMaps(Technique):
     label = "Averaged shadow maps"
     description = "Average of N hard shadow maps from points on the light: slow ground truth"
     needs = ()
-    coarse = {"reference_samples": 8}
-    sweep = MAP_SIZE_SWEEP + tuple({"reference_samples": n} for n in (16, 64, 256, 1024))
+    # The identifier stays REFERENCE (stored in .blend files and scripts); its settings say what it does.
+    options = (
+        Option("averaged_light_samples", 64, "Light Samples", "Hard shadow maps averaged per light",
+               min=1, max=4096),
+        Option("averaged_weighted", True, "Weighted",
+               "Weight each light sample by its unoccluded contribution at the pixel"),
+    )
+    reads_shared = ("seed",)
+    coarse = {"averaged_light_samples": 8}
+    sweep = MAP_SIZE_SWEEP + tuple({"averaged_light_samples": n} for n in (16, 64, 256, 1024))
 
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
-        n = 1 if light.is_delta else int(s.reference_samples)
+        n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
         offsets = light_samples(light, n, s.seed) if not light.is_delta else np.zeros((1, 2))
         sums = frame.texture((frame.width, frame.height), 4)
         sums.write(np.zeros((frame.height, frame.width, 4), np.float32).tobytes())
         weight_mode = 0
-        if s.reference_weighted and light.kind != SUN:
+        if s.option("averaged_weighted") and light.kind != SUN:
             weight_mode = 1 if light.kind == AREA else 2
         for i, offset in enumerate(offsets):
             frame.progress.check()
@@ -90,9 +99,9 @@ class AveragedMaps(Technique):
             with frame.timings.stage("shadow_map"):
                 depth = frame.render_depth_map(view)
             with frame.timings.stage("visibility"):
-                frame.dispatch("reference/accumulate.comp", {
+                frame.dispatch("averaged/accumulate.comp", {
                     **frame.bias_uniforms, **view.uniforms(), "u_sample_position": tuple(sample_world),
                     "u_emit_dir": tuple(light.direction), "u_weight_mode": weight_mode},
                     samplers={"g_irradiance": lc.irradiance, "u_depth_map": depth}, images={0: sums})
             frame.progress.step((i + 1) / len(offsets), f"{light.name}: sample {i + 1}/{len(offsets)}")
-        frame.dispatch("reference/resolve.comp", samplers={"u_sums": sums}, images={0: out})
+        frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})

@@ -43,6 +43,9 @@ class Technique:
     description = ""
     needs: tuple[str, ...] = (DEPTH_MAP,)
     options: tuple[Option, ...] = ()    # the technique's own settings
+    # Shared settings (core.settings.SHARED) beyond map size and bias that only some techniques read; the
+    # panel shows them beside the technique's options.
+    reads_shared: tuple[str, ...] = ()
     debug_passes: tuple = ()            # (name, channels, channel ids, Blender type) written with debug on
     # The technique's cheap mode for the viewport's first frame after a change (settings changes).
     coarse: dict = {}

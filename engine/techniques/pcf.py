@@ -1,16 +1,20 @@
 """PCF: percentage-closer filtering with a fixed kernel (Reeves, Salesin, Cook 1987), bilinear taps."""
-from .base import MAP_SIZE_SWEEP, Technique
+from .base import MAP_SIZE_SWEEP, Option, Technique
 
 
 class Pcf(Technique):
     identifier = "PCF"
     label = "PCF"
     description = "Fixed-size percentage-closer filter: uniform blur, ignores light size and distance"
+    options = (
+        Option("pcf_radius", 2.0, "Radius", "PCF kernel radius in texels", min=0.0, max=256.0),
+        Option("pcf_taps", 5, "Taps", "Taps per side of the square PCF kernel (bilinear each)", min=1, max=33),
+    )
     sweep = MAP_SIZE_SWEEP + tuple({"pcf_radius": r} for r in (1.0, 2.0, 4.0))
 
     def visibility(self, frame, lc, out):
         s = frame.settings
-        frame.dispatch("pcf/visibility.comp", {**lc.uniforms, "u_radius": float(s.pcf_radius),
-                                               "u_taps": int(s.pcf_taps)},
+        frame.dispatch("pcf/visibility.comp", {**lc.uniforms, "u_radius": float(s.option("pcf_radius")),
+                                               "u_taps": int(s.option("pcf_taps"))},
                        samplers={"g_irradiance": lc.irradiance, "u_depth_map": lc.structures["depth_map"]},
                        images={0: out})

@@ -7,13 +7,12 @@ HSM/MSSM build times per map size (Table 2) and the default setting's frame time
 1024² map, with HARD's time and Cycles' time at equal error, close the report.
 
     python -m penumbra bench --study backprojection --out DIR -- [--scenes balls,silhouette,suzanne]
-        [--size 128] [--map 1024] [--repeats 3] [--samples 256] [--no-perf] [--quick]
+        [--size 128] [--map 1024] [--repeats 3] [--cycles-samples 256] [--no-perf] [--quick]
 
 Writes DIR/backprojection_study.md (and .json) atomically.
 """
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -23,6 +22,7 @@ import numpy as np
 
 from .. import metrics, reference
 from ...render import pipeline
+from ...core.arguments import CYCLES_SAMPLES_RANGE, Parser, add_alias, ranged
 from ...core.files import write_atomic
 from ...core.settings import RenderSettings
 
@@ -195,14 +195,15 @@ def markdown(results: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m penumbra bench --study backprojection",
+    ap = Parser(prog="python -m penumbra bench --study backprojection",
                                  description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True)
     ap.add_argument("--scenes", default="balls,silhouette,suzanne")
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--map", type=int, default=1024)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--samples", type=int, default=256, help="Cycles reference samples")
+    add_alias(ap, "--samples", ap.add_argument("--cycles-samples", type=ranged(int, *CYCLES_SAMPLES_RANGE),
+                                               default=256, help="Cycles reference samples"))
     ap.add_argument("--quick", action="store_true", help="fewer combinations")
     ap.add_argument("--no-perf", action="store_true", help="skip the 512² performance run and Table 2")
     args = ap.parse_args(argv)
@@ -213,7 +214,8 @@ def main(argv=None) -> int:
 
     results = {"scenes": []}
     for name in [s for s in args.scenes.split(",") if s]:
-        results["scenes"].append(study_scene(name, args.size, args.map, args.repeats, args.samples, args.quick, log))
+        results["scenes"].append(study_scene(name, args.size, args.map, args.repeats, args.cycles_samples,
+                                             args.quick, log))
     if not args.no_perf:
         results["build"] = build_times(log=log)
         results["perf"] = perf(log=log)

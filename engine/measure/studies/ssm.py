@@ -1,7 +1,7 @@
 """The studies of Atty et al. 2006 §4.2 (and §5.2's timings) for the SSM technique, on our scenes against the
 Cycles reference.
 
-    python -m penumbra bench --study ssm --out DIR -- [--scenes plane suzanne] [--size 128] [--samples 64]
+    python -m penumbra bench --study ssm --out DIR -- [--scenes plane suzanne] [--size 128] [--cycles-samples 64]
 
 For each scene, one-pass and two-pass SSM (float32 accumulation) are compared with Cycles (mae_shadow:
 mean |V − V_ref| over shadow and penumbra pixels, the paper's normalisation, §4.2.1) while one parameter
@@ -18,7 +18,6 @@ Needs bpy (scene variants and the Cycles reference; references are cached on dis
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -27,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...core.arguments import CYCLES_SAMPLES_RANGE, Parser, add_alias, ranged
 from ...core.files import write_atomic
 
 MAP_SIZES = (64, 96, 128, 192, 256, 384, 512)
@@ -199,15 +199,16 @@ def markdown(results: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m penumbra bench --study ssm", description=__doc__.split("\n")[0])
+    ap = Parser(prog="python -m penumbra bench --study ssm", description=__doc__.split("\n")[0])
     ap.add_argument("--out", required=True, type=Path)
     ap.add_argument("--scenes", nargs="+", default=["plane", "suzanne"], choices=sorted(OCCLUDER))
     ap.add_argument("--size", type=int, default=128, help="image pixels per side")
-    ap.add_argument("--samples", type=int, default=64, help="Cycles samples of the reference")
+    add_alias(ap, "--samples", ap.add_argument("--cycles-samples", type=ranged(int, *CYCLES_SAMPLES_RANGE),
+                                               default=64, help="Cycles samples of the reference"))
     ap.add_argument("--repeats", type=int, default=1, help="renders per configuration (fastest kept)")
     ap.add_argument("--map-sizes", type=int, nargs="+", default=list(MAP_SIZES))
     args = ap.parse_args(argv)
-    run(args.out, tuple(args.scenes), args.size, args.samples, args.repeats, tuple(args.map_sizes),
+    run(args.out, tuple(args.scenes), args.size, args.cycles_samples, args.repeats, tuple(args.map_sizes),
         log=lambda s: print(s, file=sys.stderr, flush=True))
     print(f"wrote {args.out}/ssm_study.md, ssm_study.json and plots")
     return 0

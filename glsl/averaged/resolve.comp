@@ -1,4 +1,5 @@
-// REFERENCE: weighted mean of the accumulated samples (plain mean where every weight was zero).
+// Averaged shadow maps (REFERENCE): weighted mean of the accumulated samples (plain mean where every weight
+// was zero).
 #include "common/pixel.glsl"
 
 uniform sampler2D u_sums;

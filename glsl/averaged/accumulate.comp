@@ -1,4 +1,5 @@
-// REFERENCE: adds one hard shadow map, rendered from one sample point of the light, to running sums.
+// Averaged shadow maps (REFERENCE): adds one hard shadow map, rendered from one sample point of the light,
+// to running sums.
 // Each sample is weighted by its unoccluded contribution at the pixel (cosines over squared distance), so
 // the average converges to the irradiance-weighted visibility that Cycles' shadowed/unshadowed ratio gives.
 #include "common/pixel.glsl"
