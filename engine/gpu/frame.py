@@ -8,12 +8,12 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..core.lightview import LightView
+from ..core.shader_constants import NO_OCCLUDER
 from ..core.snapshot import SceneSnapshot
 from .geometry import SceneGeometry, SoupGeometry
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
 from .state import gl_state
 
-NO_OCCLUDER = 3.0e38    # depth-map value where nothing was drawn
 
 _DTYPE_BYTES = {"f1": 1, "u1": 1, "i1": 1, "f2": 2, "u2": 2, "i2": 2, "f4": 4, "u4": 4, "i4": 4}
 

@@ -15,9 +15,6 @@ from . import structure
 from .ssm_maps import SSM_MAPS
 
 SOFT_SHADOW_MAP = "soft_shadow_map"
-# Compute scatter: occlusion units per 1.0 of hidden light (2^24: a sum of ≤ 256 full occlusions fits a u32).
-# glsl/ssm/scatter.comp and resolve.comp receive it as the FIXED_POINT define.
-FIXED_POINT = 1 << 24
 
 
 @dataclass
@@ -66,7 +63,6 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
     m = len(rows)
     receivers = maps.maps["receivers"]
     if method == "COMPUTE":
-        defines = {**defines, "FIXED_POINT": f"{float(FIXED_POINT):.1f}"}
         for binding in (1, 2):
             t = frame.own(ctx.texture(size, 1, dtype="u4"))
             t.write(np.zeros(size[0] * size[1], np.uint32).tobytes())

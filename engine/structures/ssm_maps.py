@@ -16,7 +16,8 @@ import numpy as np
 from ..core import lightview
 from ..core.light_shape import light_half_extent, penumbra_spread
 from ..core.lightview import LightView
-from ..gpu.frame import NO_OCCLUDER, resource_bytes
+from ..core.shader_constants import EMPTY_DEPTH, NO_OCCLUDER
+from ..gpu.frame import resource_bytes
 from ..gpu.programs import program
 from . import structure
 
@@ -27,8 +28,6 @@ RECEIVER_ROLES = ("RECEIVER", "BOTH")
 # Relative depth separation (fraction of the receiver's linear depth) a micro-patch needs to occlude a
 # receiver, zo < zr·(1 − ε): keeps a receiver's own texels in the occluder map from shadowing it.
 DEPTH_EPSILON = 1e-5
-# Linear depths at or beyond this (metres) are empty texels (NO_OCCLUDER = 3e38 or a float overflow).
-FAR_DEPTH = 1.0e30
 
 
 def split_roles(snap) -> tuple[list[int], list[int]]:
@@ -88,7 +87,7 @@ def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_
     the farthest receiver depth bounds it. Returns (float32 (M, 8) rows: x0, y0, x1, y1 in texels, i, j,
     zo, object; estimated SSM texel updates). `depth_id`: (H, W, 2) depth and object index per texel."""
     depth, ids = depth_id[..., 0], depth_id[..., 1]
-    valid = (depth > 0.0) & (depth < FAR_DEPTH)
+    valid = (depth > 0.0) & (depth < EMPTY_DEPTH)
     j, i = np.nonzero(valid)
     if i.size == 0 or not np.isfinite(zr_max):
         return np.zeros((0, 8), np.float32), 0.0
@@ -208,7 +207,7 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
         with frame.timings.stage("ssm_maps"):
             maps = _draw_maps(frame, view, casters, receivers, two_pass)
             far = frame.read(maps["far"])[..., 0]
-            valid_far = (far > 0.0) & (far < FAR_DEPTH)
+            valid_far = (far > 0.0) & (far < EMPTY_DEPTH)
             zr_max = float(far[valid_far].max()) if valid_far.any() else math.inf
             lists = [patch_list(frame.read(maps["front"]), view, half, zr_max, bias)]
             if two_pass:

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.shader_constants import (CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, PRIMITIVE_MICROPATCH,
+                                     PRIMITIVE_MICROQUAD, REFINE_HSM, REFINE_MSSM, REFINE_NONE)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from ..structures import need
 from ..structures.hsm import HSM
@@ -49,7 +51,7 @@ REFINEMENTS = (("NONE", "None", "Search the whole pyramid ∩ near plane; no lit
                ("MSSM", "MSSM", "Multi-scale shadow map: full resolution at every level (§5)"))
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
-REFINE = {"NONE": 0, "HSM": 1, "MSSM": 2}
+REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM}
 
 
 def sample_pattern(accumulation: str) -> tuple[int, tuple, tuple]:
@@ -187,7 +189,7 @@ class Backprojection(Technique):
         s, light, view = frame.settings, lc.light, lc.view
         o = self.settings_of(s)
         accumulation, refine = o["bp_accumulation"], REFINE[o["bp_refinement"]]
-        bits, primitive = BITS[accumulation], int(o["bp_primitive"] == "MICROQUAD")
+        bits, primitive = BITS[accumulation], PRIMITIVE_MICROQUAD if o["bp_primitive"] == "MICROQUAD" else PRIMITIVE_MICROPATCH
         filter_passes = int(o["bp_filter_passes"]) if bits else 0
         round_ = is_round(light)
         texture = light_texture(light) if bits else None
@@ -201,7 +203,7 @@ class Backprojection(Technique):
             if pyramid is not None:     # None: layer 0 reads the MSSM
                 samplers[f"u_hsm{i}"] = pyramid
         n_mssm = 0
-        if refine == 2:
+        if refine == REFINE_MSSM:
             mssm = lc.structures[MSSM]
             samplers["u_mssm"], n_mssm = mssm.texture, mssm.levels
 
@@ -254,19 +256,19 @@ class Backprojection(Technique):
     def _gather_debug(self, frame, lc, info, rgb_tex, out):
         a = frame.read(info)
         cls, level, count = a[..., 0], a[..., 1], a[..., 2]
-        lit_px = cls >= 0
-        bp = cls == 2
+        lit_px = cls >= CLASS_LIT
+        bp = cls == CLASS_BACKPROJECTED
         lc.stats.update({"pixels": int(lit_px.sum()), "backprojected": int(bp.sum()),
                  "share_backprojected": float(bp.sum() / max(lit_px.sum(), 1)),
-                 "share_lit": float((cls == 0).sum() / max(lit_px.sum(), 1)),
-                 "share_umbra": float((cls == 1).sum() / max(lit_px.sum(), 1)),
+                 "share_lit": float((cls == CLASS_LIT).sum() / max(lit_px.sum(), 1)),
+                 "share_umbra": float((cls == CLASS_UMBRA).sum() / max(lit_px.sum(), 1)),
                  "mean_count": float(count[bp].mean()) if bp.any() else 0.0,
                  "std_count": float(count[bp].std()) if bp.any() else 0.0,
                  "mean_level": float(level[bp].mean()) if bp.any() else 0.0})
         if frame.settings.debug_passes:
             colour = np.zeros(cls.shape + (3,), np.float32)
-            colour[cls == 0] = (0.0, 1.0, 0.0)
-            colour[cls == 1] = (1.0, 0.0, 0.0)
+            colour[cls == CLASS_LIT] = (0.0, 1.0, 0.0)
+            colour[cls == CLASS_UMBRA] = (1.0, 0.0, 0.0)
             colour[bp] = (0.0, 0.0, 1.0)
             lc.debug["BP Class"] = colour
             lc.debug["BP Level"] = level[..., None].astype(np.float32)
