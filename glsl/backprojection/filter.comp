@@ -21,7 +21,7 @@ void main() {
     vec4 i0 = texelFetch(u_info, px, 0);
     if (i0.r != float(CLASS_UNREACHED)) {
         float a0 = i0.a;
-        float best = 1e30;          // larger than any |change| of a visibility in [0, 1]
+        float best = 2.0;           // above any candidate change: candidates and B0 lie in [0, 1]
         for (int axis = 0; axis < 2; ++axis) {
             ivec2 step = axis == 0 ? ivec2(1, 0) : ivec2(0, 1);
             ivec2 qm = px - step, qp = px + step;
