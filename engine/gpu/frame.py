@@ -14,7 +14,6 @@ from .geometry import SceneGeometry, SoupGeometry
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
 from .state import gl_state
 
-
 _DTYPE_BYTES = {"f1": 1, "u1": 1, "i1": 1, "f2": 2, "u2": 2, "i2": 2, "f4": 4, "u4": 4, "i4": 4}
 
 
@@ -27,7 +26,8 @@ def resource_bytes(obj) -> int:
         if hasattr(obj, "components") and hasattr(obj, "dtype"):
             layers = getattr(obj, "layers", None) or getattr(obj, "depth", None) or 1
             return int(obj.width * obj.height * layers * obj.components * _DTYPE_BYTES.get(obj.dtype, 4))
-        return int(getattr(obj, "size", 0)) if isinstance(getattr(obj, "size", 0), int) else 0
+        size = getattr(obj, "size", 0)  # a buffer's bytes; a framebuffer's size is a tuple: nothing held
+        return size if isinstance(size, int) else 0
     own = getattr(obj, "nbytes", None)  # structures that count themselves; numpy arrays
     if isinstance(own, int):
         return own
@@ -35,17 +35,6 @@ def resource_bytes(obj) -> int:
         return sum(resource_bytes(v) for v in obj.values())
     if isinstance(obj, (list, tuple)):
         return sum(resource_bytes(v) for v in obj)
-    return 0
-    own = getattr(obj, "nbytes", None)
-    if isinstance(own, int) and not hasattr(obj, "dtype") or isinstance(own, int) and hasattr(obj, "glo"):
-        return own
-    if isinstance(obj, dict):
-        return sum(resource_bytes(v) for v in obj.values())
-    if isinstance(obj, (list, tuple)):
-        return sum(resource_bytes(v) for v in obj)
-    if hasattr(obj, "glo") and hasattr(obj, "components") and hasattr(obj, "dtype"):
-        layers = getattr(obj, "layers", None) or getattr(obj, "depth", None) or 1
-        return int(obj.width * obj.height * layers * obj.components * _DTYPE_BYTES.get(obj.dtype, 4))
     return 0
 
 

@@ -138,7 +138,7 @@ class Backprojection(Technique):
                    "bitmasks with correct occluder fusion, microquads, HSM/MSSM search-area refinement, depth "
                    "peeling. Area lights of every shape, point/spot radius as a disk, sun as a disk of "
                    "directions; textured lights through per-sample colours")
-    needs = (DEPTH_MAP,)
+    needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM)    # all it may use; needs_for picks from the options
     options = (
         Option("bp_primitive", "MICROPATCH", "Micro-occluders", "How depth-map texels become occluders",
                items=PRIMITIVES),
