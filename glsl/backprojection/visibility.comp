@@ -202,24 +202,33 @@ uint bit_range(int k0, int k1) {
 // OR the samples inside [u0, u1) × [v0, v1) (light coordinates in [0, 1]) into the bitmask (§3). Sample
 // (column k, row l) sits at ((k + jx[l&1]) / N, (l + jy[k&1]) / N): the regular N×N grid for offsets ½, the
 // 8×8 tiling of the 2×2 rotated grid (RGSS) for the jittered 16×16 pattern. Columns are turned into a bit
-// range per row parity, rows into a range per column parity (scale, bias and integer conversion).
-void set_rect(inout Occlusion o, vec2 a, vec2 b) {
+// range per row parity, rows into a range per column parity (scale, bias and integer conversion). The
+// owner of the bitmask ORs span_row(s, l) into rows s.rows.x ≤ l < s.rows.y (no bitmask is passed around:
+// a function taking the array inout would copy it per micro-occluder).
+struct Span {
+    uvec2 cols;                 // column bits, for even and odd rows
+    ivec2 r0, r1;               // row range [r0, r1), for even and odd columns
+    ivec2 rows;                 // rows touched: [min r0, max r1)
+};
+
+Span rect_span(vec2 a, vec2 b) {
     float N = float(BITS);
-    uint cols[2];
-    int r0[2], r1[2];
+    Span s;
     for (int q = 0; q < 2; ++q) {
         int k0 = int(clamp(ceil(a.x * N - u_jitter_x[q]), 0.0, N));
         int k1 = int(clamp(ceil(b.x * N - u_jitter_x[q]), 0.0, N));
-        cols[q] = bit_range(k0, k1);
-        r0[q] = int(clamp(ceil(a.y * N - u_jitter_y[q]), 0.0, N));
-        r1[q] = int(clamp(ceil(b.y * N - u_jitter_y[q]), 0.0, N));
+        s.cols[q] = bit_range(k0, k1);
+        s.r0[q] = int(clamp(ceil(a.y * N - u_jitter_y[q]), 0.0, N));
+        s.r1[q] = int(clamp(ceil(b.y * N - u_jitter_y[q]), 0.0, N));
     }
+    s.rows = ivec2(min(s.r0[0], s.r0[1]), max(s.r1[0], s.r1[1]));
+    return s;
+}
+
+uint span_row(Span s, int l) {
     const uint EVEN = 0x55555555u & ROW_MASK, ODD = 0xaaaaaaaau & ROW_MASK;
-    int lmin = min(r0[0], r0[1]), lmax = max(r1[0], r1[1]);
-    for (int l = lmin; l < lmax; ++l) {
-        uint sel = ((l >= r0[0] && l < r1[0]) ? EVEN : 0u) | ((l >= r0[1] && l < r1[1]) ? ODD : 0u);
-        o.bits[l] |= cols[l & 1] & sel;
-    }
+    uint sel = ((l >= s.r0[0] && l < s.r1[0]) ? EVEN : 0u) | ((l >= s.r0[1] && l < s.r1[1]) ? ODD : 0u);
+    return s.cols[l & 1] & sel;
 }
 #endif
 
@@ -236,19 +245,12 @@ float disk_fraction(vec2 a, vec2 b) {
     return sum * w / 3.14159265;
 }
 
-// Rectangle [a, b] in light coordinates ([−1, 1]² = the light's bounding rectangle).
-void add_rect(inout Occlusion o, vec2 a, vec2 b) {
-#if NEED_AREA
-    if (u_round == 1) {
-        o.area += disk_fraction(a, b);
-    } else {
-        vec2 lo = max(a, vec2(-1.0)), hi = min(b, vec2(1.0));
-        o.area += max(hi.x - lo.x, 0.0) * max(hi.y - lo.y, 0.0) * 0.25;
-    }
-#endif
-#if BITS > 0
-    set_rect(o, a * 0.5 + 0.5, b * 0.5 + 0.5);
-#endif
+// Occluded fraction of the light for the rectangle [a, b] in light coordinates ([−1, 1]² = the light's
+// bounding rectangle).
+float rect_area(vec2 a, vec2 b) {
+    if (u_round == 1) return disk_fraction(a, b);
+    vec2 lo = max(a, vec2(-1.0)), hi = min(b, vec2(1.0));
+    return max(hi.x - lo.x, 0.0) * max(hi.y - lo.y, 0.0) * 0.25;
 }
 
 // ---- micro-occluders --------------------------------------------------------------------------------------
@@ -279,14 +281,17 @@ vec2 backproject(Pixel p, vec2 w, float z) {
 
 // Micropatch of cell c (level l): the cell's square at its (minimum) depth, parallel to the light. Gap
 // filling (GBP06): when the left (bottom) neighbour is an occluder too, the patch's left (bottom) edge is
-// extended to where that neighbour's right (top) edge backprojects, closing the gap between them.
-void micropatch(Pixel p, inout Occlusion o, int layer, int l, ivec2 c) {
+// extended to where that neighbour's right (top) edge backprojects, closing the gap between them. False
+// when the cell occludes nothing; else its light rectangle [a, b] and occluded fraction `area`.
+bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
     float s = float(1 << l);
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
-    if (!cell_occludes(p, z, p0, p1, l)) return;
+    area = 0.0;
+    if (!cell_occludes(p, z, p0, p1, l)) return false;
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
-    vec2 a = backproject(p, w0, z), b = backproject(p, w1, z);
+    a = backproject(p, w0, z);
+    b = backproject(p, w1, z);
 #if GAP_FILL
     float zl = cell_depth(layer, l, c - ivec2(1, 0));
     if (cell_occludes(p, zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
@@ -295,43 +300,46 @@ void micropatch(Pixel p, inout Occlusion o, int layer, int l, ivec2 c) {
     if (cell_occludes(p, zb, p0 - vec2(0.0, s), vec2(p1.x, p0.y), l))
         a.y = min(a.y, (w0.y - p.tp.y) * k_of(p, zb) / u_light_half.y);
 #endif
-    add_rect(o, a, b);
+#if NEED_AREA
+    area = rect_area(a, b);
+#endif
+    return true;
 }
 
 // Microquad (§4) whose corners are the centres of cells c, c+(1,0), c+(0,1), c+(1,1): backprojected only
 // when all four are occluders. Area accumulation: the quad with its corners clamped to the light rectangle
 // (Fig. 6 left; watertight). Bitmask (and round lights): the axis-aligned rectangle through the midpoints of
-// the quad's edges (Fig. 6 right).
-void microquad(Pixel p, inout Occlusion o, int layer, int l, ivec2 c) {
+// the quad's edges (Fig. 6 right). Returns like micropatch.
+bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
     float s = float(1 << l);
     vec2 v[4];
+    area = 0.0;
     for (int i = 0; i < 4; ++i) {
         ivec2 ci = c + ivec2(i & 1, i >> 1);
         float z = cell_depth(layer, l, ci);
         vec2 p0 = vec2(ci) * s, p1 = min(p0 + s, vec2(u_map_size));
         vec2 pos = 0.5 * (p0 + p1);
-        if (!cell_occludes(p, z, p0, p1, l)) return;
+        if (!cell_occludes(p, z, p0, p1, l)) return false;
         v[i] = backproject(p, window_at(p, pos), z);
     }
     // v[0] = (0,0), v[1] = (1,0), v[2] = (0,1), v[3] = (1,1)
     vec2 ml = 0.5 * (v[0] + v[2]), mr = 0.5 * (v[1] + v[3]);
     vec2 mb = 0.5 * (v[0] + v[1]), mt = 0.5 * (v[2] + v[3]);
-    vec2 a = vec2(min(ml.x, mr.x), min(mb.y, mt.y)), b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
-#if BITS > 0
-    set_rect(o, a * 0.5 + 0.5, b * 0.5 + 0.5);
-#endif
+    a = vec2(min(ml.x, mr.x), min(mb.y, mt.y));
+    b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
 #if NEED_AREA
     if (u_round == 1) {
-        o.area += disk_fraction(a, b);
+        area = disk_fraction(a, b);
     } else {
         vec2 q0 = clamp(v[0], -1.0, 1.0), q1 = clamp(v[1], -1.0, 1.0);
         vec2 q3 = clamp(v[3], -1.0, 1.0), q2 = clamp(v[2], -1.0, 1.0);
         // Shoelace over the loop (0,0) → (1,0) → (1,1) → (0,1).
         float twice = (q0.x * q1.y - q1.x * q0.y) + (q1.x * q3.y - q3.x * q1.y)
                     + (q3.x * q2.y - q2.x * q3.y) + (q2.x * q0.y - q0.x * q2.y);
-        o.area += abs(twice) * 0.5 * 0.25;
+        area = abs(twice) * 0.5 * 0.25;
     }
 #endif
+    return true;
 }
 
 #if WEIGHTED
@@ -408,16 +416,27 @@ Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, out float level, out float count) 
 #if BITS > 0
     for (int i = 0; i < BITS; ++i) o.bits[i] = 0u;
 #endif
+    // Micropatches: the area's cells; microquads: the quads between the centres of its cells and their
+    // neighbours (one more per side).
+    ivec2 first = PRIMITIVE == PRIMITIVE_MICROQUAD ? c0 - 1 : c0;
     for (int layer = 0; layer < LAYERS; ++layer) {
+        for (int y = first.y; y <= c1.y; ++y)
+            for (int x = first.x; x <= c1.x; ++x) {
+                vec2 a, b;
+                float area;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
-        for (int y = c0.y; y <= c1.y; ++y)
-            for (int x = c0.x; x <= c1.x; ++x) micropatch(p, o, layer, l, ivec2(x, y));
-        count += float((c1.x - c0.x + 1) * (c1.y - c0.y + 1));
+                bool hit = micropatch(p, layer, l, ivec2(x, y), a, b, area);
 #else
-        for (int y = c0.y - 1; y <= c1.y; ++y)
-            for (int x = c0.x - 1; x <= c1.x; ++x) microquad(p, o, layer, l, ivec2(x, y));
-        count += float((c1.x - c0.x + 2) * (c1.y - c0.y + 2));
+                bool hit = microquad(p, layer, l, ivec2(x, y), a, b, area);
 #endif
+                if (!hit) continue;
+                o.area += area;
+#if BITS > 0
+                Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
+                for (int r = s.rows.x; r < s.rows.y; ++r) o.bits[r] |= span_row(s, r);
+#endif
+            }
+        count += float((c1.x - first.x + 1) * (c1.y - first.y + 1));
     }
     return o;
 }
