@@ -78,7 +78,7 @@ def test_render_refuses_an_out_that_is_a_folder(tmp_path):
 
 
 def test_render_refuses_an_unwritable_folder_before_rendering(tmp_path):
-    target = "/proc/penumbra-test/out.exr"        # /proc takes no new files, not even from root
+    target = "/proc/penumbra-test/out.png"        # /proc takes no new files, not even from root
     r = _cli("render", "--scene", "plane", "--resolution", "32", "32", "--out", str(tmp_path / "ok.exr"),
              "--png", target, cwd=tmp_path)
     _one_line_error(r, target, "not writable")

@@ -107,3 +107,27 @@ def test_coarse_frame_uses_each_techniques_cheap_mode_and_never_raises_quality()
     low = coarse_settings(RenderSettings(technique="REFERENCE", shadow_map_size=128)
                           .with_(averaged_light_samples=2), 256)
     assert low.option("averaged_light_samples") == 2 and low.shadow_map_size == 128
+
+
+def test_an_instance_takes_its_instancers_role_in_the_viewport_too():
+    """The viewport reads roles like the final render: an instance whose own Shadow Role is Both inherits
+    its instancer's (here CASTER, so SSM draws it into the occluder maps only)."""
+    import penumbra
+    from penumbra.engine.blender.viewport_sync import ViewportScene
+    if not hasattr(bpy.types.Object, "penumbra"):
+        penumbra.register()
+    sc = scenes.build("plane", resolution=(32, 32))
+    src = bpy.data.collections.new("RoleSrc")
+    mesh = bpy.data.meshes.new("RoleTri")
+    mesh.from_pydata([(0, 0, 1), (1, 0, 1), (0, 1, 1)], [], [(0, 1, 2)])
+    src.objects.link(bpy.data.objects.new("RoleTri", mesh))
+    instancer = bpy.data.objects.new("RoleInstancer", None)
+    instancer.instance_type, instancer.instance_collection = "COLLECTION", src
+    instancer.penumbra.role = "CASTER"
+    sc.collection.objects.link(instancer)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    final = {(o.name, o.role) for o in extract(depsgraph, sc).objects}
+    state, _ = ViewportScene().sync(depsgraph)
+    viewport = {(o.name, o.role) for o in state.objects}
+    assert ("RoleTri", "CASTER") in final
+    assert viewport == final

@@ -453,17 +453,24 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
                          **geometry)
 
 
-def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, material_cache, table_cache,
-                  warn_once) -> tuple[int, int]:
+def object_info(ob, parent) -> tuple[str, bool, bool, str]:
+    """(name, caster, receiver, role) of a mesh object as one instance sees it, `parent` its instancer (None
+    when not instanced): what the final render and the viewport both read. Cycles ANDs the instancer's ray
+    visibility into the instance's; an instance whose own Shadow Role is Both takes its instancer's."""
     caster = bool(ob.visible_shadow)
     receiver = bool(ob.visible_camera)
     role = _role(ob)
     if parent is not None and parent != ob:
-        # Cycles ANDs the instancer's ray visibility into the instance's.
         caster = caster and bool(parent.visible_shadow)
         receiver = receiver and bool(parent.visible_camera)
         if role == "BOTH":
             role = _role(parent)
+    return ob.name, caster, receiver, role
+
+
+def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, material_cache, table_cache,
+                  warn_once) -> tuple[int, int]:
+    _, caster, receiver, role = object_info(ob, parent)
     okey = (ob.name, caster, receiver, role)
     oid = object_index.get(okey)
     if oid is None:

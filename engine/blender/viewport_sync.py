@@ -49,7 +49,7 @@ class ViewportScene:
                 continue
             parent = inst.parent if inst.is_instance else None
             key = (ob.name, ob.data.name)
-            info = _object_info(ob, parent)
+            info = extraction.object_info(ob, parent)
             oid = object_index.setdefault(info, len(objects))
             if oid == len(objects):
                 objects.append(ObjectInfo(*info))
@@ -75,15 +75,6 @@ class ViewportScene:
         state = SceneState(dict(self.pieces), instances, objects, lights, warnings, depsgraph.scene.name,
                            self.version)
         return state, changed
-
-
-def _object_info(ob, parent) -> tuple:
-    caster, receiver = bool(ob.visible_shadow), bool(ob.visible_camera)
-    role = str(getattr(getattr(ob, "penumbra", None), "role", "BOTH"))
-    if parent is not None and parent != ob:
-        caster = caster and bool(parent.visible_shadow)
-        receiver = receiver and bool(parent.visible_camera)
-    return (ob.name, caster, receiver, role)
 
 
 def _read_piece(ob, extraction, warnings) -> MeshPiece | None:

@@ -8,11 +8,34 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..core.lightview import LightView
+from ..core.shader_constants import NO_OCCLUDER
 from ..core.snapshot import SceneSnapshot
 from .geometry import SceneGeometry, SoupGeometry
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
+from .state import gl_state
 
-NO_OCCLUDER = 3.0e38    # depth-map value where nothing was drawn
+_DTYPE_BYTES = {"f1": 1, "u1": 1, "i1": 1, "f2": 2, "u2": 2, "i2": 2, "f4": 4, "u4": 4, "i4": 4}
+
+
+def resource_bytes(obj) -> int:
+    """GPU memory held by `obj`: its `nbytes` if it states one, a texture's (or texture array's) texels,
+    or the sum over a list, tuple or dict of such; 0 for anything else (None, numbers)."""
+    if obj is None:
+        return 0
+    if hasattr(obj, "glo"):             # a moderngl object
+        if hasattr(obj, "components") and hasattr(obj, "dtype"):
+            layers = getattr(obj, "layers", None) or getattr(obj, "depth", None) or 1
+            return int(obj.width * obj.height * layers * obj.components * _DTYPE_BYTES.get(obj.dtype, 4))
+        size = getattr(obj, "size", 0)  # a buffer's bytes; a framebuffer's size is a tuple: nothing held
+        return size if isinstance(size, int) else 0
+    own = getattr(obj, "nbytes", None)  # structures that count themselves; numpy arrays
+    if isinstance(own, int):
+        return own
+    if isinstance(obj, dict):
+        return sum(resource_bytes(v) for v in obj.values())
+    if isinstance(obj, (list, tuple)):
+        return sum(resource_bytes(v) for v in obj)
+    return 0
 
 # Memory one frame needs per image pixel, estimated from what it allocates: on the GPU the G-buffer (four
 # RGBA32F targets and a depth buffer, 68 B) and the pipeline's sums (four RGBA32F, one RG32F, one R32F, 76 B);
@@ -103,12 +126,13 @@ class Frame:
         check_image_size(ctx, self.width, self.height)
         self.timings = Timings(ctx)
         self._owned: list = []
+        self._per_light: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline
         self.bias_uniforms: dict = {}   # u_bias / u_normal_offset, shared by every technique
         self.warnings: list[str] = list(snap.warnings)  # FrameResult.warnings
         self.stats: dict = {}           # counters techniques add (FrameResult.stats)
         with self.timings.stage("upload"):
-            self.geometry = geometry or self._own(SoupGeometry(ctx, snap))
+            self.geometry = geometry or self.own(SoupGeometry(ctx, snap))
         self._depth_targets: dict = {}
         self.gbuffer = self._render_gbuffer()
 
@@ -122,16 +146,32 @@ class Frame:
         for name, value in counters.items():
             self.stats[name] = self.stats.get(name, 0) + value
 
-    def _own(self, obj):
+    def own(self, obj):
+        """Release `obj` with the frame."""
         self._owned.append(obj)
         return obj
 
+    def own_per_light(self, obj):
+        """Release `obj` when the pipeline finishes the current light (`end_light`): large per-light
+        structures (an MSSM) must not pile up over the lights of one frame."""
+        self._per_light.append(obj)
+        return obj
+
+    def end_light(self) -> None:
+        for obj in reversed(self._per_light):
+            obj.release()
+        self._per_light.clear()
+
+    def buffer(self, data: bytes):
+        return self.own(self.ctx.buffer(data))
+
     def texture(self, size, components, dtype="f4"):
-        tex = self._own(self.ctx.texture(size, components, dtype=dtype))
+        tex = self.own(self.ctx.texture(size, components, dtype=dtype))
         tex.filter = (0x2600, 0x2600)   # GL_NEAREST: techniques fetch texels themselves
         return tex
 
     def release(self):
+        self.end_light()
         for obj in reversed(self._owned):
             obj.release()
         self._owned.clear()
@@ -141,8 +181,8 @@ class Frame:
         ctx, cam = self.ctx, self.snap.camera
         size = (self.width, self.height)
         g = {name: self.texture(size, 4) for name in ("g_position", "g_normal", "g_geometric", "g_albedo")}
-        depth = self._own(ctx.depth_texture(size))
-        fbo = self._own(ctx.framebuffer(color_attachments=list(g.values()), depth_attachment=depth))
+        depth = self.own(ctx.depth_texture(size))
+        fbo = self.own(ctx.framebuffer(color_attachments=list(g.values()), depth_attachment=depth))
         with self.timings.stage("gbuffer"):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -163,38 +203,53 @@ class Frame:
         c = components or tex.components
         return np.frombuffer(tex.read(), dtype=np.float32).reshape(tex.height, tex.width, tex.components)[..., :c]
 
-    # ---- shadow maps -----------------------------------------------------------------------------------
+    # ---- light-view rasterisation ------------------------------------------------------------------------
+    def target(self, size, components: int = 1, dtype: str = "f4"):
+        """A (colour texture, framebuffer with a depth buffer) pair owned by the frame."""
+        tex = self.texture(size, components, dtype)
+        depth = self.own(self.ctx.depth_texture(size))
+        return tex, self.own(self.ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
+
+    def rasterise(self, target, prog, view, view_proj, *, role: str = "caster", draws=((None, {}),),
+                  clear=(NO_OCCLUDER, 0.0, 0.0, 0.0), farthest: bool = False, uniforms: dict | None = None,
+                  samplers: dict | None = None):
+        """The one routine that draws scene triangles from a light's (or the camera's) eye into `target`:
+        positions only, depth-tested, both faces, no blending. `prog` pairs common/depth.vert with a
+        fragment shader (depth map, depth peeling, SSM's tagged maps); `draws` is a list of (object indices
+        or None for all, uniforms for that draw); `farthest` keeps the farthest fragment instead of the
+        nearest (depth cleared to 0, test ">"). Returns the colour texture."""
+        ctx = self.ctx
+        tex, fbo = target
+        fbo.use()
+        fbo.clear(*clear, depth=0.0 if farthest else 1.0)
+        set_uniforms(prog, {"u_light_view": mat_uniform(view), "u_light_view_proj": mat_uniform(view_proj),
+                            **(uniforms or {})})
+        if samplers:
+            bind_samplers(prog, samplers)
+        with gl_state(ctx, depth_test=True, cull=False, blend=False, depth_func=">" if farthest else "<"):
+            for objects, extra in draws:
+                set_uniforms(prog, extra)
+                self.geometry.render(ctx, prog, role, objects, position_only=True)
+        return tex
+
     def render_depth_map(self, view: LightView, target=None):
         """Linear light depth of the casters seen from `view`, as an R32F texture (NO_OCCLUDER where empty).
         Render targets are reused between calls of the same size (REFERENCE renders hundreds)."""
-        ctx = self.ctx
         size = (view.width, view.height)
         if target is None:
-            cached = self._depth_targets.get(size)
-            if cached is None:
-                tex = self.texture(size, 1)
-                depth = self._own(ctx.depth_texture(size))
-                fbo = self._own(ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
-                cached = self._depth_targets[size] = (tex, fbo)
-            tex, fbo = cached
-        else:
-            tex, fbo = target
-        fbo.use()
-        fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0, depth=1.0)
-        if self.geometry.has_casters:
-            ctx.enable(ctx.DEPTH_TEST)
-            ctx.disable(ctx.CULL_FACE)
-            prog = program(self.worker, "common/depth.vert", "common/depth.frag")
-            set_uniforms(prog, {"u_light_view": mat_uniform(view.view), "u_light_view_proj": mat_uniform(view.view_proj)})
-            self.geometry.render(ctx, prog, "caster", position_only=True)
-        return tex
+            target = self._depth_targets.get(size)
+            if target is None:
+                target = self._depth_targets[size] = self.target(size, 1)
+        if not self.geometry.has_casters:
+            target[1].use()
+            target[1].clear(NO_OCCLUDER, 0.0, 0.0, 0.0, depth=1.0)
+            return target[0]
+        prog = program(self.worker, "common/depth.vert", "common/depth.frag")
+        return self.rasterise(target, prog, view.view, view.view_proj)
 
     def new_depth_target(self, view: LightView):
         """A private depth-map target, for structures that must outlive the next render_depth_map call."""
-        size = (view.width, view.height)
-        tex = self.texture(size, 1)
-        depth = self._own(self.ctx.depth_texture(size))
-        return tex, self._own(self.ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
+        return self.target((view.width, view.height), 1)
 
     # ---- compute passes --------------------------------------------------------------------------------
     def dispatch(self, compute: str, uniforms: dict | None = None, samplers: dict | None = None,

@@ -9,6 +9,7 @@ import re
 from pathlib import Path
 
 from ..core.matrices import mat_uniform  # noqa: F401  (re-exported: every program user packs matrices)
+from ..core.shader_constants import DEFINES as SHARED_DEFINES, glsl_literal
 
 GLSL_ROOT = Path(__file__).resolve().parents[2] / "glsl"
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
@@ -20,10 +21,12 @@ class ShaderError(RuntimeError):
 
 
 def expand(name: str, defines: dict | None = None) -> tuple[str, list[str]]:
-    """Source of glsl/`name` with includes inlined, and the list of files indexed by source-string number."""
+    """Source of glsl/`name` with includes inlined, and the list of files indexed by source-string number.
+    Every program gets the shared constants (core/shader_constants.py) as defines, then `defines`."""
     files: list[str] = []
     body = _expand(name, files, set())
-    head = _VERSION + "".join(f"#define {k} {v}\n" for k, v in sorted((defines or {}).items()))
+    head = (_VERSION + "".join(f"#define {k} {glsl_literal(v)}\n" for k, v in sorted(SHARED_DEFINES.items()))
+            + "".join(f"#define {k} {v}\n" for k, v in sorted((defines or {}).items())))
     return head + body, files
 
 

@@ -133,6 +133,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                            samplers={"g_irradiance": irradiance, "u_visibility": visibility,
                                      "u_visibility_rgb": rgb if rgb is not None else visibility},
                            images={0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum})
+        frame.end_light()                   # per-light structures (an MSSM) go before the next light
         frame.progress.step(1.0, f"{light.name}: done")
 
     with t.stage("readback"):
@@ -148,9 +149,11 @@ def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers
     the technique's coloured visibility texture, if it made one."""
     t = frame.timings
     lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms})
-    for need in technique.needs:     # only what the technique declares, once per light view
+    memory = stats.setdefault("structure_bytes", {})    # per structure: the largest light view's
+    for need in structures.plan(technique.needs_for(frame.settings)):    # what the technique declares, once
         with t.stage("shadow_map"):
-            lc.structures[need] = structures.build(need, frame, lc)
+            built = lc.structures[need.name] = structures.build(need, frame, lc)
+        memory[need.name] = max(memory.get(need.name, 0), structures.nbytes(built))
     with t.stage("visibility"):
         technique.visibility(frame, lc, out)
     stats["views"] = stats.get("views", 0) + 1

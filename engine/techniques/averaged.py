@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import lightview
+from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN, Light
 from .base import MAP_SIZE_SWEEP, Option, Technique
 
@@ -82,9 +83,9 @@ class AveragedMaps(Technique):
         offsets = light_samples(light, n, s.seed) if not light.is_delta else np.zeros((1, 2))
         sums = frame.texture((frame.width, frame.height), 4)
         sums.write(np.zeros((frame.height, frame.width, 4), np.float32).tobytes())
-        weight_mode = 0
+        weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted") and light.kind != SUN:
-            weight_mode = 1 if light.kind == AREA else 2
+            weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SPHERE
         for i, offset in enumerate(offsets):
             frame.progress.check()
             if light.kind == SUN:

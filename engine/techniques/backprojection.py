@@ -20,19 +20,22 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
 Light kinds: AREA (all shapes) exactly; POINT/SPOT with a radius as a disk of that radius facing the map's
 axis; SUN with its orthographic map: micro-occluders backproject to directions (offset per unit depth); delta
 lights (no extent) fall back to a hard shadow-map test.
+
+The depth map, peeled layers, HSM pyramids and MSSM are per-light structures (engine/structures/), declared
+by `needs_for` from the options; this module runs the gather and the post-filter.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from ..gpu.programs import program
+from ..core.shader_constants import (CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, PRIMITIVE_MICROPATCH,
+                                     PRIMITIVE_MICROQUAD, REFINE_HSM, REFINE_MSSM, REFINE_NONE)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
+from ..structures import need
+from ..structures.hsm import HSM
+from ..structures.mssm import MSSM, level_count
+from ..structures.peeled_layers import PEELED_LAYERS
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
-from ..gpu.programs import mat_uniform, set_uniforms
-
-NO_OCCLUDER = 3.0e38
 
 PRIMITIVES = (("MICROPATCH", "Micropatches", "Each texel a square parallel to the light (GBP06)"),
               ("MICROQUAD", "Microquads", "Texel centres as quad vertices (Schwarz & Stamminger §4)"))
@@ -48,9 +51,7 @@ REFINEMENTS = (("NONE", "None", "Search the whole pyramid ∩ near plane; no lit
                ("MSSM", "MSSM", "Multi-scale shadow map: full resolution at every level (§5)"))
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
-REFINE = {"NONE": 0, "HSM": 1, "MSSM": 2}
-PEEL_EPS = 1e-4          # relative depth separation between peeled layers
-MSSM_BUDGET_BYTES = 512 << 20   # full-resolution MSSM levels beyond this come from the HSM (§5's hybrid)
+REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM}
 
 
 def sample_pattern(accumulation: str) -> tuple[int, tuple, tuple]:
@@ -126,83 +127,6 @@ def _mask_rows(valid: np.ndarray) -> list[int]:
     return rows
 
 
-def level_count(width: int, height: int) -> int:
-    """Hierarchy levels so that the coarsest cell (2^(L−1) texels) covers the whole map."""
-    return max(int(math.ceil(math.log2(max(width, height, 1)))), 0) + 1
-
-
-# ------------------------------------------------------------------------------------------------------------
-# structures: depth peeling, HSM, MSSM
-# ------------------------------------------------------------------------------------------------------------
-
-def peel_layers(frame, view, first, layers: int) -> list:
-    """`layers` depth maps from the light centre: `first` and up to three peeled layers behind it (§3.2)."""
-    out = [first]
-    if layers <= 1 or not frame.geometry.has_casters:
-        return out
-    ctx = frame.ctx
-    prog = program(frame.worker, "common/depth.vert", "backprojection/peel.frag")
-    set_uniforms(prog, {"u_light_view": mat_uniform(view.view), "u_light_view_proj": mat_uniform(view.view_proj),
-                "u_peel_eps": PEEL_EPS})
-    for _ in range(layers - 1):
-        tex, fbo = frame.new_depth_target(view)
-        fbo.use()
-        fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0, depth=1.0)
-        ctx.enable(ctx.DEPTH_TEST)
-        ctx.disable(ctx.CULL_FACE)
-        out[-1].use(location=0)
-        prog["u_prev"].value = 0
-        frame.geometry.render(ctx, prog, "caster", position_only=True)
-        out.append(tex)
-    return out
-
-
-def build_hsm(frame, depth, width: int, height: int):
-    """Min/max pyramid (GBP06) in a power-of-two padded RG32F mipmapped texture. Returns (texture, levels)."""
-    pw, ph = 1 << max(width - 1, 0).bit_length(), 1 << max(height - 1, 0).bit_length()
-    levels = level_count(pw, ph)
-    tex = frame.texture((pw, ph), 2)
-    tex.build_mipmaps(0, levels - 1)
-    tex.filter = (0x2600, 0x2600)
-    prog = program(frame.worker, compute="backprojection/hsm.comp")
-    depth.use(location=0)
-    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
-    for l_ in range(levels):
-        size = (max(pw >> l_, 1), max(ph >> l_, 1))
-        tex.bind_to_image(0, read=False, write=True, level=l_)
-        if l_ > 0:
-            tex.bind_to_image(1, read=True, write=False, level=l_ - 1)
-        set_uniforms(prog, {"u_first": int(l_ == 0), "u_dst_size": size})
-        prog.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
-        frame.ctx.memory_barrier()
-    return tex, levels
-
-
-def mssm_levels(width: int, height: int) -> int:
-    """Full-resolution MSSM levels kept: all of them unless that exceeds MSSM_BUDGET_BYTES (a 4096² map would
-    need 1.7 GB); the coarser ones are then read from the HSM — §5's hybrid of pyramid and MSSM, with the
-    roles swapped (fine levels MSSM, coarse HSM), which keeps the tight fine bounds that matter most."""
-    return max(1, min(level_count(width, height), MSSM_BUDGET_BYTES // max(width * height * 8, 1)))
-
-
-def build_mssm(frame, depth, width: int, height: int):
-    """Multi-scale shadow map (§5) as an RG32F texture array, one full-resolution layer per level. The
-    caller releases it. Returns (texture array, levels)."""
-    levels = mssm_levels(width, height)
-    tex = frame.ctx.texture_array((width, height, levels), 2, dtype="f4")
-    tex.filter = (0x2600, 0x2600)
-    prog = program(frame.worker, compute="backprojection/mssm.comp")
-    depth.use(location=0)
-    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
-    tex.bind_to_image(0, read=True, write=True)
-    tex.bind_to_image(1, read=True, write=True)
-    for l_ in range(levels):
-        set_uniforms(prog, {"u_level": l_})
-        prog.run((width + 7) // 8, (height + 7) // 8, 1)
-        frame.ctx.memory_barrier()
-    return tex, levels
-
-
 # ------------------------------------------------------------------------------------------------------------
 # the technique
 # ------------------------------------------------------------------------------------------------------------
@@ -214,7 +138,7 @@ class Backprojection(Technique):
                    "bitmasks with correct occluder fusion, microquads, HSM/MSSM search-area refinement, depth "
                    "peeling. Area lights of every shape, point/spot radius as a disk, sun as a disk of "
                    "directions; textured lights through per-sample colours")
-    needs = (DEPTH_MAP,)
+    needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM)    # all it may use; needs_for picks from the options
     options = (
         Option("bp_primitive", "MICROPATCH", "Micro-occluders", "How depth-map texels become occluders",
                items=PRIMITIVES),
@@ -253,101 +177,98 @@ class Backprojection(Technique):
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
 
+    def needs_for(self, s) -> tuple:
+        """Depth map, its peeled layers (§3.2), their min/max pyramids and, for MSSM refinement, the
+        multi-scale shadow map of layer 0 (§5), which then stands in for layer 0's pyramid."""
+        o = self.settings_of(s)
+        mssm = o["bp_refinement"] == "MSSM"
+        return (DEPTH_MAP, need(PEELED_LAYERS, layers=int(o["bp_layers"])), need(HSM, mssm_first=mssm),
+                *((MSSM,) if mssm else ()))
+
     def visibility(self, frame, lc, out):
         s, light, view = frame.settings, lc.light, lc.view
         o = self.settings_of(s)
         accumulation, refine = o["bp_accumulation"], REFINE[o["bp_refinement"]]
-        bits, primitive = BITS[accumulation], int(o["bp_primitive"] == "MICROQUAD")
-        layers = int(o["bp_layers"])
+        bits, primitive = BITS[accumulation], PRIMITIVE_MICROQUAD if o["bp_primitive"] == "MICROQUAD" else PRIMITIVE_MICROPATCH
         filter_passes = int(o["bp_filter_passes"]) if bits else 0
         round_ = is_round(light)
         texture = light_texture(light) if bits else None
         depth = lc.structures[DEPTH_MAP]
+        maps = lc.structures[PEELED_LAYERS].maps
         w, h = view.width, view.height
         size = (frame.width, frame.height)
-        extra = []          # resources not owned by the frame
-        try:
-            with frame.timings.stage("bp_peel"):
-                maps = peel_layers(frame, view, depth, layers)
-            samplers = {"g_irradiance": lc.irradiance, "u_depth": depth}
-            levels = level_count(w, h)
-            with frame.timings.stage("bp_hsm"):
-                for i, m in enumerate(maps):
-                    if i == 0 and refine == 2 and mssm_levels(w, h) >= levels:
-                        continue            # layer 0 reads the MSSM
-                    samplers[f"u_hsm{i}"], _ = build_hsm(frame, m, w, h)
-            n_mssm = 0
-            if refine == 2:
-                with frame.timings.stage("bp_mssm"):
-                    mssm, n_mssm = build_mssm(frame, depth, w, h)
-                    extra.append(mssm)
-                    samplers["u_mssm"] = mssm
+        samplers = {"g_irradiance": lc.irradiance, "u_depth": depth}
+        levels = level_count(w, h)
+        for i, pyramid in enumerate(lc.structures[HSM].pyramids):
+            if pyramid is not None:     # None: layer 0 reads the MSSM
+                samplers[f"u_hsm{i}"] = pyramid
+        n_mssm = 0
+        if refine == REFINE_MSSM:
+            mssm = lc.structures[MSSM]
+            samplers["u_mssm"], n_mssm = mssm.texture, mssm.levels
 
-            shape = light_shape_uniforms(light, view)
-            n, jx, jy = sample_pattern(accumulation) if bits else (0, (0.5, 0.5), (0.5, 0.5))
-            valid = valid_mask(accumulation, round_) if bits else np.zeros((0, 0), bool)
-            uniforms = {**lc.uniforms, "u_light_half": shape["u_light_half"], "u_round": int(round_),
-                        "u_delta": int(light.is_delta), "u_budget": int(o["bp_budget"]), "u_levels": int(levels),
-                        "u_mssm_levels": int(n_mssm),
-                        "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
-                        "u_valid_count": float(max(valid.sum(), 1)),
-                        "u_area_light": int(light.kind == AREA)}
-            info = frame.texture(size, 4)
-            images = {0: out, 1: info}
-            rgb_tex = None
-            if texture is not None:
-                colors = sample_colors(texture, accumulation).astype(np.float32)
-                lum = luminance(colors).astype(np.float32)
-                table = np.concatenate([colors, lum[..., None]], axis=-1) * valid[..., None]
-                color_tex = frame.texture((n, n), 4)
-                color_tex.write(np.ascontiguousarray(table, np.float32).tobytes())
-                samplers["u_sample_color"] = color_tex
-                rgb_tex = frame.texture(size, 4)
-                images[2] = rgb_tex
-                lc.visibility_rgb = rgb_tex         # Combined shades each channel with its own visibility
-            defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
-                       "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
-                       # Irradiance weights need a light plane at a finite distance: not for suns.
-                       "WEIGHTED": int(bits > 0 and o["bp_weighting"] == "IRRADIANCE" and light.kind != SUN
-                                       and not light.is_delta),
-                       "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes)}
-            frame.progress.check()
-            with frame.timings.stage("bp_gather"):
-                frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
-                               defines=defines)
-            if filter_passes:
-                with frame.timings.stage("bp_filter"):
-                    tmp = frame.texture(size, 1)
-                    src, dst = out, tmp
-                    for _ in range(filter_passes):
-                        frame.dispatch("backprojection/filter.comp", samplers={"u_b": src, "u_info": info},
-                                       images={0: dst})
-                        src, dst = dst, src
-                    if src is not out:      # odd number of passes: the result is in tmp
-                        out.write(src.read())
-            # Share of backprojecting pixels and micro-occluders per such pixel (costs a readback).
-            if s.collect_stats or s.debug_passes:
-                self._gather_debug(frame, lc, info, rgb_tex, out)
-        finally:
-            for r in extra:
-                r.release()
+        shape = light_shape_uniforms(light, view)
+        n, jx, jy = sample_pattern(accumulation) if bits else (0, (0.5, 0.5), (0.5, 0.5))
+        valid = valid_mask(accumulation, round_) if bits else np.zeros((0, 0), bool)
+        uniforms = {**lc.uniforms, "u_light_half": shape["u_light_half"], "u_round": int(round_),
+                    "u_delta": int(light.is_delta), "u_budget": int(o["bp_budget"]), "u_levels": int(levels),
+                    "u_mssm_levels": int(n_mssm),
+                    "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
+                    "u_valid_count": float(max(valid.sum(), 1)),
+                    "u_area_light": int(light.kind == AREA)}
+        info = frame.texture(size, 4)
+        images = {0: out, 1: info}
+        rgb_tex = None
+        if texture is not None:
+            colors = sample_colors(texture, accumulation).astype(np.float32)
+            lum = luminance(colors).astype(np.float32)
+            table = np.concatenate([colors, lum[..., None]], axis=-1) * valid[..., None]
+            color_tex = frame.texture((n, n), 4)
+            color_tex.write(np.ascontiguousarray(table, np.float32).tobytes())
+            samplers["u_sample_color"] = color_tex
+            rgb_tex = frame.texture(size, 4)
+            images[2] = rgb_tex
+            lc.visibility_rgb = rgb_tex         # Combined shades each channel with its own visibility
+        defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
+                   "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
+                   # Irradiance weights need a light plane at a finite distance: not for suns.
+                   "WEIGHTED": int(bits > 0 and o["bp_weighting"] == "IRRADIANCE" and light.kind != SUN
+                                   and not light.is_delta),
+                   "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes)}
+        frame.progress.check()
+        with frame.timings.stage("bp_gather"):
+            frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
+                           defines=defines)
+        if filter_passes:
+            with frame.timings.stage("bp_filter"):
+                tmp = frame.texture(size, 1)
+                src, dst = out, tmp
+                for _ in range(filter_passes):
+                    frame.dispatch("backprojection/filter.comp", samplers={"u_b": src, "u_info": info},
+                                   images={0: dst})
+                    src, dst = dst, src
+                if src is not out:      # odd number of passes: the result is in tmp
+                    out.write(src.read())
+        # Share of backprojecting pixels and micro-occluders per such pixel (costs a readback).
+        if s.collect_stats or s.debug_passes:
+            self._gather_debug(frame, lc, info, rgb_tex, out)
 
     def _gather_debug(self, frame, lc, info, rgb_tex, out):
         a = frame.read(info)
         cls, level, count = a[..., 0], a[..., 1], a[..., 2]
-        lit_px = cls >= 0
-        bp = cls == 2
+        lit_px = cls >= CLASS_LIT
+        bp = cls == CLASS_BACKPROJECTED
         lc.stats.update({"pixels": int(lit_px.sum()), "backprojected": int(bp.sum()),
                  "share_backprojected": float(bp.sum() / max(lit_px.sum(), 1)),
-                 "share_lit": float((cls == 0).sum() / max(lit_px.sum(), 1)),
-                 "share_umbra": float((cls == 1).sum() / max(lit_px.sum(), 1)),
+                 "share_lit": float((cls == CLASS_LIT).sum() / max(lit_px.sum(), 1)),
+                 "share_umbra": float((cls == CLASS_UMBRA).sum() / max(lit_px.sum(), 1)),
                  "mean_count": float(count[bp].mean()) if bp.any() else 0.0,
                  "std_count": float(count[bp].std()) if bp.any() else 0.0,
                  "mean_level": float(level[bp].mean()) if bp.any() else 0.0})
         if frame.settings.debug_passes:
             colour = np.zeros(cls.shape + (3,), np.float32)
-            colour[cls == 0] = (0.0, 1.0, 0.0)
-            colour[cls == 1] = (1.0, 0.0, 0.0)
+            colour[cls == CLASS_LIT] = (0.0, 1.0, 0.0)
+            colour[cls == CLASS_UMBRA] = (1.0, 0.0, 0.0)
             colour[bp] = (0.0, 0.0, 1.0)
             lc.debug["BP Class"] = colour
             lc.debug["BP Level"] = level[..., None].astype(np.float32)

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..core.light_shape import light_half_extent
 from ..core.lightview import LightView
 from ..structures.depth_map import DEPTH_MAP  # noqa: F401  (the default need; techniques import it from here)
 from ..core.options import Option  # noqa: F401  (techniques declare their options with it)
@@ -52,6 +53,11 @@ class Technique:
     # Configurations the benchmark's --sweep traces (settings changes; RenderSettings fields or options).
     sweep: tuple[dict, ...] = MAP_SIZE_SWEEP
 
+    def needs_for(self, settings) -> tuple:
+        """The structures to build for `settings` (names, or structures.need(NAME, **params) where options
+        decide a builder's parameters); the pipeline asks this. Default: the class's `needs`."""
+        return tuple(self.needs)
+
     def visibility(self, frame, lc: LightContext, out) -> None:
         raise NotImplementedError
 
@@ -59,21 +65,6 @@ class Technique:
 def light_shape_uniforms(light: Light, view: LightView) -> dict:
     """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun) and whether it
     is round (disk, ellipse, sphere, sun) or rectangular: what filter kernels and samplers need."""
-    from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
-    if light.kind == AREA:
-        half = (light.size_x / 2.0, light.size_y / 2.0)
-        round_ = light.shape in (DISK, ELLIPSE)
-        if view.face is not None:
-            # A side face of the light's cube of views sees the light at an angle: its extent projected onto
-            # the face's plane (kept above 5 % of the light's size, so kernels built on it never collapse).
-            import numpy as np
-            corners = np.array([[sx * half[0], sy * half[1], 0.0] for sx in (-1, 1) for sy in (-1, 1)])
-            projected = np.max(np.abs(corners @ np.asarray(view.face, float).T)[:, :2], axis=0)
-            half = tuple(float(v) for v in np.maximum(projected, 0.05 * max(half)))
-    elif light.kind == SUN:
-        import math
-        t = math.tan(light.angle / 2.0)
-        half, round_ = (t, t), True
-    else:
-        half, round_ = (light.radius, light.radius), True
-    return {"u_light_half": half, "u_light_round": int(round_)}
+    from ..core.snapshot import AREA, DISK, ELLIPSE
+    round_ = light.kind != AREA or light.shape in (DISK, ELLIPSE)
+    return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(round_)}

@@ -8,7 +8,7 @@
 uniform sampler2D u_depth_map;
 uniform vec3 u_sample_position;   // world position of the sample (perspective views)
 uniform vec3 u_emit_dir;          // light's emission axis (world)
-uniform int u_weight_mode;        // 0: none, 1: area (both cosines), 2: sphere (receiver cosine)
+uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine)
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
 
 void main() {
@@ -18,12 +18,12 @@ void main() {
     Receiver r = make_receiver(p, texelFetch(g_geometric, px, 0).xyz);
     float v = map_lit(u_depth_map, ivec2(floor(r.map.xy)), r.map.z - r.bias);
     float w = 1.0;
-    if (u_weight_mode > 0) {
+    if (u_weight_mode != WEIGHT_NONE) {
         vec3 to_sample = u_sample_position - p;
-        float d2 = max(dot(to_sample, to_sample), 1e-30);
+        float d2 = max(dot(to_sample, to_sample), 1e-30);   // m²: a receiver on the sample point
         vec3 dir = to_sample * inversesqrt(d2);
         w = max(dot(texelFetch(g_normal, px, 0).xyz, dir), 0.0) / d2;
-        if (u_weight_mode == 1) w *= max(dot(-dir, u_emit_dir), 0.0);
+        if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-dir, u_emit_dir), 0.0);
     }
     imageStore(u_sums, px, imageLoad(u_sums, px) + vec4(w * v, w, v, 1.0));
 }

@@ -6,11 +6,11 @@
 #include "common/pixel.glsl"
 
 uniform sampler2D u_b;          // R32F: current bitmask visibility
-uniform sampler2D u_info;       // RGBA32F: (class, level, count, A); class < 0 where the light does not reach
+uniform sampler2D u_info;       // RGBA32F: (class, level, count, A); CLASS_UNREACHED where the light does not reach
 layout(r32f, binding = 0) uniform writeonly image2D u_out;
 
 bool usable(ivec2 q) {
-    return all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, u_image_size)) && texelFetch(u_info, q, 0).r >= 0.0;
+    return all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, u_image_size)) && texelFetch(u_info, q, 0).r != float(CLASS_UNREACHED);
 }
 
 void main() {
@@ -19,9 +19,9 @@ void main() {
     float b0 = texelFetch(u_b, px, 0).r;
     float result = b0;
     vec4 i0 = texelFetch(u_info, px, 0);
-    if (i0.r >= 0.0) {
+    if (i0.r != float(CLASS_UNREACHED)) {
         float a0 = i0.a;
-        float best = 1e30;
+        float best = 2.0;           // above any candidate change: candidates and B0 lie in [0, 1]
         for (int axis = 0; axis < 2; ++axis) {
             ivec2 step = axis == 0 ? ivec2(1, 0) : ivec2(0, 1);
             ivec2 qm = px - step, qp = px + step;

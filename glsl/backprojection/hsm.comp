@@ -1,5 +1,6 @@
 // Hierarchical shadow map (GBP06, recalled in Schwarz & Stamminger 2007 §2.1/§5): a min/max mip pyramid.
-// Level 0 copies the depth map into a power-of-two padded RG32F texture (padding = (3e38, −3e38)); level l
+// Level 0 copies the depth map into a power-of-two padded RG32F texture (padding = (NO_OCCLUDER,
+// −NO_OCCLUDER)); level l
 // texel c holds the (min, max) of level-0 texels [c·2^l, (c+1)·2^l).
 layout(local_size_x = 8, local_size_y = 8) in;
 uniform sampler2D u_depth;      // level 0 source (R32F)
@@ -15,8 +16,8 @@ void main() {
     vec2 mm;
     if (u_first == 1) {
         // Padding is neutral for both extrema, so coarse cells that straddle the map's edge bound only
-        // the texels inside it (and read as empty, min = 3e38, when wholly outside).
-        mm = all(lessThan(p, u_map_size)) ? vec2(texelFetch(u_depth, p, 0).r) : vec2(3.0e38, -3.0e38);
+        // the texels inside it (and read as empty, min = NO_OCCLUDER, when wholly outside).
+        mm = all(lessThan(p, u_map_size)) ? vec2(texelFetch(u_depth, p, 0).r) : vec2(NO_OCCLUDER, -NO_OCCLUDER);
     } else {
         vec2 a = imageLoad(u_src, 2 * p).rg;
         vec2 b = imageLoad(u_src, 2 * p + ivec2(1, 0)).rg;

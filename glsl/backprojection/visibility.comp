@@ -15,18 +15,19 @@
 // the light is [−1, 1]² and a micropatch (parallel to the light) stays an axis-aligned rectangle.
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
+#include "common/penumbra.glsl"
 
 #ifndef BITS
 #define BITS 16                 // 0: area accumulation only; 8, 16, 32: N×N occlusion bitmask
 #endif
 #ifndef PRIMITIVE
-#define PRIMITIVE 0             // 0 micropatches, 1 microquads
+#define PRIMITIVE PRIMITIVE_MICROPATCH   // or PRIMITIVE_MICROQUAD
 #endif
 #ifndef GAP_FILL
 #define GAP_FILL 1
 #endif
 #ifndef REFINE
-#define REFINE 2                // 0 none, 1 HSM, 2 MSSM
+#define REFINE REFINE_MSSM      // REFINE_NONE, REFINE_HSM or REFINE_MSSM
 #endif
 #ifndef LAYERS
 #define LAYERS 1
@@ -59,7 +60,7 @@ uniform sampler2D u_hsm0;       // per layer: min/max pyramid (RG32F, power-of-t
 uniform sampler2D u_hsm1;
 uniform sampler2D u_hsm2;
 uniform sampler2D u_hsm3;
-uniform sampler2DArray u_mssm;  // layer 0 multi-scale shadow map (REFINE 2)
+uniform sampler2DArray u_mssm;  // layer 0 multi-scale shadow map (REFINE_MSSM)
 uniform int u_mssm_levels;      // MSSM levels stored; coarser ones come from the HSM (§5's hybrid)
 
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
@@ -69,17 +70,32 @@ uniform sampler2D u_sample_color;   // BITS×BITS: rgb colour of each light samp
 layout(rgba32f, binding = 2) uniform writeonly image2D u_rgb;
 #endif
 
-const float EMPTY = 1.0e37;
+// Relative depth gap (fraction of the receiver's linear depth) a micro-occluder needs in front of the
+// receiver: a texel of the receiver's own surface, a rounding error nearer, must not occlude it.
+const float SELF_GAP = 1e-6;
 
-vec2 g_tex;                     // window units per texel (x, y)
-vec2 g_tp;                      // receiver's window coordinate
-float g_d;                      // receiver depth
-Receiver g_r;
+// What one pixel's gather knows about its receiver: the Receiver (light_view.glsl), its map depth d,
+// its window coordinate tp, and the window units per map texel.
+struct Pixel {
+    Receiver r;
+    float d;
+    vec2 tp;
+    vec2 tex;
+};
+
+// Occlusion gathered so far: the N×N bitmask of light samples hidden (§3) and the summed occluded fraction
+// of the light (GBP06 area accumulation, unclamped).
+struct Occlusion {
+    float area;
+#if BITS > 0
+    uint bits[BITS];
+#endif
+};
 
 // ---- hierarchy access -----------------------------------------------------------------------------------
 // (min, max) depth of cell c of level l on the level's own grid (cells of 2^l × 2^l level-0 texels).
 vec2 cell_minmax(int layer, int l, ivec2 c) {
-#if REFINE == 2
+#if REFINE == REFINE_MSSM
     if (layer == 0 && l < u_mssm_levels) {
         // MSSM: the texel whose centred neighbourhood is exactly this cell (the HSM grid, §5).
         ivec2 t = l == 0 ? c : c * (1 << l) + (1 << (l - 1));
@@ -96,27 +112,28 @@ vec2 cell_minmax(int layer, int l, ivec2 c) {
 #if LAYERS > 3
     if (layer == 3) return texelFetch(u_hsm3, c, l).rg;
 #endif
-    return vec2(3.0e38);
+    return vec2(NO_OCCLUDER);
 }
 
 float cell_depth(int layer, int l, ivec2 c) {
     ivec2 n = (u_map_size + (1 << l) - 1) >> l;
-    if (any(lessThan(c, ivec2(0))) || any(greaterThanEqual(c, n))) return 3.0e38;
+    if (any(lessThan(c, ivec2(0))) || any(greaterThanEqual(c, n))) return NO_OCCLUDER;
     return cell_minmax(layer, l, c).x;
 }
 
 // ---- search area -----------------------------------------------------------------------------------------
-// Half extent (texels) of the pyramid section at occluder depth z: h·(1/z − 1/d) (perspective) or h·(d − z).
-vec2 search_half(float z) {
-    float s = u_light_ortho == 1 ? max(g_d - z, 0.0) : max(1.0 / max(z, 1e-30) - 1.0 / g_d, 0.0);
-    return min(u_light_half * s / g_tex, vec2(1.0e7));
+// Half extent (texels) of the pyramid section at occluder depth z: h·spread(z, d) (common/penumbra.glsl),
+// capped at 1e7 texels so that an occluder on the light plane gives a huge but finite area.
+vec2 search_half(Pixel p, float z) {
+    float s = penumbra_spread_clamped(z, p.d, u_light_ortho);
+    return min(u_light_half * s / p.tex, vec2(1.0e7));
 }
 
 // Texel range [lo, hi] (inclusive, level 0) of the search area for occluders no nearer than z; false if
-// the area misses the map.
-bool search_area(float z, out ivec2 lo, out ivec2 hi) {
-    vec2 h = search_half(z);
-    vec2 c = clamp(g_r.map.xy, vec2(-2.0e7), vec2(2.0e7));
+// the area misses the map. The centre is clamped to ±2e7 texels to keep ivec2 conversion in range.
+bool search_area(Pixel p, float z, out ivec2 lo, out ivec2 hi) {
+    vec2 h = search_half(p, z);
+    vec2 c = clamp(p.r.map.xy, vec2(-2.0e7), vec2(2.0e7));
     lo = ivec2(floor(c - h));
     hi = ivec2(floor(c + h));
     if (any(greaterThanEqual(lo, u_map_size)) || any(lessThan(hi, ivec2(0)))) return false;
@@ -134,7 +151,7 @@ vec2 hsm_bound(ivec2 lo, ivec2 hi) {
     int l = 0;
     while (l < u_levels - 1 && any(greaterThan((hi >> l) - (lo >> l), ivec2(1)))) ++l;
     ivec2 a = lo >> l, b = hi >> l;
-    vec2 m = vec2(3.0e38, -3.0e38);
+    vec2 m = vec2(NO_OCCLUDER, -NO_OCCLUDER);
     for (int y = a.y; y <= b.y; ++y)
         for (int x = a.x; x <= b.x; ++x) {
             vec2 v = texelFetch(u_hsm0, ivec2(x, y), l).rg;
@@ -143,7 +160,7 @@ vec2 hsm_bound(ivec2 lo, ivec2 hi) {
     return m;
 }
 
-#if REFINE == 2
+#if REFINE == REFINE_MSSM
 vec2 cell_minmax_raw_mssm(ivec2 t, int l) {
     return texelFetch(u_mssm, ivec3(clamp(t, ivec2(0), u_map_size - 1), l), 0).rg;
 }
@@ -154,7 +171,7 @@ vec2 cell_minmax_raw_mssm(ivec2 t, int l) {
 // (overlapping) neighbourhoods tightly cover it.
 vec2 area_bound(ivec2 lo, ivec2 hi, int fine) {
     ivec2 n = hi - lo + 1;
-#if REFINE == 2
+#if REFINE == REFINE_MSSM
     int l = min(ceil_log2(max(n.x, n.y)), u_levels - 1);
     if (fine == 0 && l < u_mssm_levels) {
         ivec2 t = l == 0 ? lo : lo + (1 << (l - 1));
@@ -174,7 +191,6 @@ vec2 area_bound(ivec2 lo, ivec2 hi, int fine) {
 
 // ---- occlusion accounting ---------------------------------------------------------------------------------
 #if BITS > 0
-uint g_occ[BITS];
 const uint ROW_MASK = BITS == 32 ? 0xffffffffu : ((1u << BITS) - 1u);
 
 uint bit_range(int k0, int k1) {
@@ -186,28 +202,35 @@ uint bit_range(int k0, int k1) {
 // OR the samples inside [u0, u1) × [v0, v1) (light coordinates in [0, 1]) into the bitmask (§3). Sample
 // (column k, row l) sits at ((k + jx[l&1]) / N, (l + jy[k&1]) / N): the regular N×N grid for offsets ½, the
 // 8×8 tiling of the 2×2 rotated grid (RGSS) for the jittered 16×16 pattern. Columns are turned into a bit
-// range per row parity, rows into a range per column parity (scale, bias and integer conversion).
-void set_rect(vec2 a, vec2 b) {
+// range per row parity, rows into a range per column parity (scale, bias and integer conversion). The
+// owner of the bitmask ORs span_row(s, l) into rows s.rows.x ≤ l < s.rows.y (no bitmask is passed around:
+// a function taking the array inout would copy it per micro-occluder).
+struct Span {
+    uvec2 cols;                 // column bits, for even and odd rows
+    ivec2 r0, r1;               // row range [r0, r1), for even and odd columns
+    ivec2 rows;                 // rows touched: [min r0, max r1)
+};
+
+Span rect_span(vec2 a, vec2 b) {
     float N = float(BITS);
-    uint cols[2];
-    int r0[2], r1[2];
+    Span s;
     for (int q = 0; q < 2; ++q) {
         int k0 = int(clamp(ceil(a.x * N - u_jitter_x[q]), 0.0, N));
         int k1 = int(clamp(ceil(b.x * N - u_jitter_x[q]), 0.0, N));
-        cols[q] = bit_range(k0, k1);
-        r0[q] = int(clamp(ceil(a.y * N - u_jitter_y[q]), 0.0, N));
-        r1[q] = int(clamp(ceil(b.y * N - u_jitter_y[q]), 0.0, N));
+        s.cols[q] = bit_range(k0, k1);
+        s.r0[q] = int(clamp(ceil(a.y * N - u_jitter_y[q]), 0.0, N));
+        s.r1[q] = int(clamp(ceil(b.y * N - u_jitter_y[q]), 0.0, N));
     }
+    s.rows = ivec2(min(s.r0[0], s.r0[1]), max(s.r1[0], s.r1[1]));
+    return s;
+}
+
+uint span_row(Span s, int l) {
     const uint EVEN = 0x55555555u & ROW_MASK, ODD = 0xaaaaaaaau & ROW_MASK;
-    int lmin = min(r0[0], r0[1]), lmax = max(r1[0], r1[1]);
-    for (int l = lmin; l < lmax; ++l) {
-        uint sel = ((l >= r0[0] && l < r1[0]) ? EVEN : 0u) | ((l >= r0[1] && l < r1[1]) ? ODD : 0u);
-        g_occ[l] |= cols[l & 1] & sel;
-    }
+    uint sel = ((l >= s.r0[0] && l < s.r1[0]) ? EVEN : 0u) | ((l >= s.r0[1] && l < s.r1[1]) ? ODD : 0u);
+    return s.cols[l & 1] & sel;
 }
 #endif
-
-float g_area;                   // accumulated occluded fraction of the light (unclamped, GBP06)
 
 // Fraction of the unit disk covered by the rectangle [a, b] (eight-strip midpoint rule over x, exact in y).
 float disk_fraction(vec2 a, vec2 b) {
@@ -222,244 +245,274 @@ float disk_fraction(vec2 a, vec2 b) {
     return sum * w / 3.14159265;
 }
 
-// Rectangle [a, b] in light coordinates ([−1, 1]² = the light's bounding rectangle).
-void add_rect(vec2 a, vec2 b) {
-#if NEED_AREA
-    if (u_round == 1) {
-        g_area += disk_fraction(a, b);
-    } else {
-        vec2 lo = max(a, vec2(-1.0)), hi = min(b, vec2(1.0));
-        g_area += max(hi.x - lo.x, 0.0) * max(hi.y - lo.y, 0.0) * 0.25;
-    }
-#endif
-#if BITS > 0
-    set_rect(a * 0.5 + 0.5, b * 0.5 + 0.5);
-#endif
+// Occluded fraction of the light for the rectangle [a, b] in light coordinates ([−1, 1]² = the light's
+// bounding rectangle).
+float rect_area(vec2 a, vec2 b) {
+    if (u_round == 1) return disk_fraction(a, b);
+    vec2 lo = max(a, vec2(-1.0)), hi = min(b, vec2(1.0));
+    return max(hi.x - lo.x, 0.0) * max(hi.y - lo.y, 0.0) * 0.25;
 }
 
 // ---- micro-occluders --------------------------------------------------------------------------------------
-float k_of(float z) {
-    return u_light_ortho == 1 ? 1.0 / (g_d - z) : z * g_d / (g_d - z);
-}
-
-// Is a texel of depth z at map position pos (texels) a micro-occluder for this receiver? Nearer than the
-// receiver's own plane there (less the bias) and strictly nearer than the receiver.
-bool occludes(float z, vec2 pos) {
-    return z < EMPTY && z < receiver_depth_at(g_r, pos) && z < g_d * (1.0 - 1e-6);
+// Light-plane units per window unit for a point at depth z (the header's z·d/(d − z), or 1/(d − z) for a sun).
+float k_of(Pixel p, float z) {
+    return u_light_ortho == 1 ? 1.0 / (p.d - z) : z * p.d / (p.d - z);
 }
 
 // A coarse cell (level > 0) holds the minimum depth of its 2^l × 2^l texels; the receiver's own plane
 // inside it reaches as near as its nearest corner (1/z is linear over the window), so compare there, or a
 // tilted receiver shadows itself from coarse levels (the acne §4 warns about).
-bool cell_occludes(float z, vec2 p0, vec2 p1, int l) {
-    if (!(z < EMPTY) || !(z < g_d * (1.0 - 1e-6))) return false;
-    if (l == 0) return z < receiver_depth_at(g_r, 0.5 * (p0 + p1));
-    float m = min(min(receiver_depth_at(g_r, p0), receiver_depth_at(g_r, p1)),
-                  min(receiver_depth_at(g_r, vec2(p0.x, p1.y)), receiver_depth_at(g_r, vec2(p1.x, p0.y))));
+bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
+    if (!(z < EMPTY_DEPTH) || !(z < p.d * (1.0 - SELF_GAP))) return false;
+    if (l == 0) return z < receiver_depth_at(p.r, 0.5 * (p0 + p1));
+    float m = min(min(receiver_depth_at(p.r, p0), receiver_depth_at(p.r, p1)),
+                  min(receiver_depth_at(p.r, vec2(p0.x, p1.y)), receiver_depth_at(p.r, vec2(p1.x, p0.y))));
     return z < m;
 }
 
-vec2 window_at(vec2 pos) {
-    return u_light_window.xz + pos * g_tex;
+vec2 window_at(Pixel p, vec2 pos) {
+    return u_light_window.xz + pos * p.tex;
 }
 
 // Light coordinates of the window point w at depth z (§2.1 backprojection, see the header).
-vec2 backproject(vec2 w, float z) {
-    return (w - g_tp) * k_of(z) / u_light_half;
+vec2 backproject(Pixel p, vec2 w, float z) {
+    return (w - p.tp) * k_of(p, z) / u_light_half;
 }
 
 // Micropatch of cell c (level l): the cell's square at its (minimum) depth, parallel to the light. Gap
 // filling (GBP06): when the left (bottom) neighbour is an occluder too, the patch's left (bottom) edge is
-// extended to where that neighbour's right (top) edge backprojects, closing the gap between them.
-void micropatch(int layer, int l, ivec2 c) {
+// extended to where that neighbour's right (top) edge backprojects, closing the gap between them. False
+// when the cell occludes nothing; else its light rectangle [a, b] and occluded fraction `area`.
+bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
     float s = float(1 << l);
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
-    if (!cell_occludes(z, p0, p1, l)) return;
-    vec2 w0 = window_at(p0), w1 = window_at(p1);
-    vec2 a = backproject(w0, z), b = backproject(w1, z);
+    area = 0.0;
+    if (!cell_occludes(p, z, p0, p1, l)) return false;
+    vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
+    a = backproject(p, w0, z);
+    b = backproject(p, w1, z);
 #if GAP_FILL
     float zl = cell_depth(layer, l, c - ivec2(1, 0));
-    if (cell_occludes(zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
-        a.x = min(a.x, (w0.x - g_tp.x) * k_of(zl) / u_light_half.x);
+    if (cell_occludes(p, zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
+        a.x = min(a.x, (w0.x - p.tp.x) * k_of(p, zl) / u_light_half.x);
     float zb = cell_depth(layer, l, c - ivec2(0, 1));
-    if (cell_occludes(zb, p0 - vec2(0.0, s), vec2(p1.x, p0.y), l))
-        a.y = min(a.y, (w0.y - g_tp.y) * k_of(zb) / u_light_half.y);
+    if (cell_occludes(p, zb, p0 - vec2(0.0, s), vec2(p1.x, p0.y), l))
+        a.y = min(a.y, (w0.y - p.tp.y) * k_of(p, zb) / u_light_half.y);
 #endif
-    add_rect(a, b);
+#if NEED_AREA
+    area = rect_area(a, b);
+#endif
+    return true;
 }
 
 // Microquad (§4) whose corners are the centres of cells c, c+(1,0), c+(0,1), c+(1,1): backprojected only
 // when all four are occluders. Area accumulation: the quad with its corners clamped to the light rectangle
 // (Fig. 6 left; watertight). Bitmask (and round lights): the axis-aligned rectangle through the midpoints of
-// the quad's edges (Fig. 6 right).
-void microquad(int layer, int l, ivec2 c) {
+// the quad's edges (Fig. 6 right). Returns like micropatch.
+bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
     float s = float(1 << l);
     vec2 v[4];
+    area = 0.0;
     for (int i = 0; i < 4; ++i) {
         ivec2 ci = c + ivec2(i & 1, i >> 1);
         float z = cell_depth(layer, l, ci);
         vec2 p0 = vec2(ci) * s, p1 = min(p0 + s, vec2(u_map_size));
         vec2 pos = 0.5 * (p0 + p1);
-        if (!cell_occludes(z, p0, p1, l)) return;
-        v[i] = backproject(window_at(pos), z);
+        if (!cell_occludes(p, z, p0, p1, l)) return false;
+        v[i] = backproject(p, window_at(p, pos), z);
     }
     // v[0] = (0,0), v[1] = (1,0), v[2] = (0,1), v[3] = (1,1)
     vec2 ml = 0.5 * (v[0] + v[2]), mr = 0.5 * (v[1] + v[3]);
     vec2 mb = 0.5 * (v[0] + v[1]), mt = 0.5 * (v[2] + v[3]);
-    vec2 a = vec2(min(ml.x, mr.x), min(mb.y, mt.y)), b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
-#if BITS > 0
-    set_rect(a * 0.5 + 0.5, b * 0.5 + 0.5);
-#endif
+    a = vec2(min(ml.x, mr.x), min(mb.y, mt.y));
+    b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
 #if NEED_AREA
     if (u_round == 1) {
-        g_area += disk_fraction(a, b);
+        area = disk_fraction(a, b);
     } else {
         vec2 q0 = clamp(v[0], -1.0, 1.0), q1 = clamp(v[1], -1.0, 1.0);
         vec2 q3 = clamp(v[3], -1.0, 1.0), q2 = clamp(v[2], -1.0, 1.0);
         // Shoelace over the loop (0,0) → (1,0) → (1,1) → (0,1).
         float twice = (q0.x * q1.y - q1.x * q0.y) + (q1.x * q3.y - q3.x * q1.y)
                     + (q3.x * q2.y - q2.x * q3.y) + (q2.x * q0.y - q0.x * q2.y);
-        g_area += abs(twice) * 0.5 * 0.25;
+        area = abs(twice) * 0.5 * 0.25;
     }
 #endif
+    return true;
 }
 
-// ---- main -------------------------------------------------------------------------------------------------
 #if WEIGHTED
 // Unoccluded contribution of light sample (row l, column k) at the receiver: cosθ_receiver · cosθ_light / d²
 // for an area light, cosθ_receiver / d² for a sphere's disk. The light-local sample position mirrors
 // sample_positions() in engine/techniques/backprojection.py.
-float sample_weight(int l, int k) {
+float sample_weight(Pixel p, int l, int k) {
     float n = float(BITS);
     vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
-    vec3 to_sample = vec3(q * u_light_half, 0.0) - g_r.local;
-    float d2 = max(dot(to_sample, to_sample), 1e-30);
-    float w = max(dot(g_r.normal, to_sample), 0.0) / (d2 * sqrt(d2));
+    vec3 to_sample = vec3(q * u_light_half, 0.0) - p.r.local;
+    float d2 = max(dot(to_sample, to_sample), 1e-30);       // m²: a receiver on the light plane
+    float w = max(dot(p.r.normal, to_sample), 0.0) / (d2 * sqrt(d2));
     if (u_area_light == 1) w *= max(to_sample.z, 0.0) * inversesqrt(d2);
     return w;
 }
 #endif
+
+// ---- the three steps of a pixel ---------------------------------------------------------------------------
+struct Result {
+    float v;                    // visibility
+    float cls;                  // CLASS_LIT, CLASS_UMBRA or CLASS_BACKPROJECTED
+    float level;                // hierarchy level the micro-occluders came from
+    float count;                // micro-occluders processed (all layers)
+    float a_vis;                // 1 − accumulated area, unclamped (drives §3.1 post-filtering)
+    vec3 rgb;                   // per-channel visibility of a textured light
+};
+
+Pixel make_pixel(ivec2 px) {
+    Pixel p;
+    p.r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+    p.d = p.r.map.z;
+    p.tex = (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
+    p.tp = window_coords(p.r.local);
+    return p;
+}
+
+// Classify (§2.1, §5): the search area (pyramid ∩ near plane) as [lo, hi]; with a refinement, bound its
+// depth range, classify, narrow the area to occluders no nearer than z_min, bound again (finer), classify
+// and narrow once more before any micro-occluder is touched. Returns the class.
+int classify(Pixel p, out ivec2 lo, out ivec2 hi) {
+    bool inside = search_area(p, u_light_depth_range.x, lo, hi);
+    int state = inside ? CLASS_BACKPROJECTED : CLASS_LIT;
+#if REFINE != REFINE_NONE
+    float d_biased = p.d - p.r.bias;
+    for (int pass = 0; pass < 2 && state == CLASS_BACKPROJECTED; ++pass) {
+        vec2 zr = area_bound(lo, hi, pass);
+        // The receiver plane's depth over the area: 1/z is linear in the window, so the corners bound it.
+        float plo = d_biased, phi = d_biased;
+        for (int i = 0; i < 4; ++i) {
+            vec2 corner = vec2((i & 1) == 0 ? lo.x : hi.x + 1, (i >> 1) == 0 ? lo.y : hi.y + 1);
+            float pz = receiver_depth_at(p.r, corner);
+            plo = min(plo, pz);
+            phi = max(phi, pz);
+        }
+        if (zr.x >= phi || zr.x >= p.d) state = CLASS_LIT;          // nothing nearer than the receiver
+        else if (zr.y < plo) state = CLASS_UMBRA;                   // everything nearer, no gap
+        else if (!search_area(p, zr.x, lo, hi)) state = CLASS_LIT;
+    }
+#endif
+    return state;
+}
+
+// Gather (§4, §5): every micro-occluder of every layer over [lo, hi], at the finest level whose grid covers
+// the area with at most b (microquads: b − 1) cells per side; sampling positions stay on that level's grid.
+Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, out float level, out float count) {
+    int extra = PRIMITIVE == PRIMITIVE_MICROQUAD ? 1 : 0;
+    int l = 0;
+    while (l < u_levels - 1 && any(greaterThan((hi >> l) - (lo >> l) + 1 + extra, ivec2(u_budget)))) ++l;
+    level = float(l);
+    count = 0.0;
+    ivec2 c0 = lo >> l, c1 = hi >> l;
+    Occlusion o;
+    o.area = 0.0;
+#if BITS > 0
+    for (int i = 0; i < BITS; ++i) o.bits[i] = 0u;
+#endif
+    // Micropatches: the area's cells; microquads: the quads between the centres of its cells and their
+    // neighbours (one more per side).
+    ivec2 first = PRIMITIVE == PRIMITIVE_MICROQUAD ? c0 - 1 : c0;
+    for (int layer = 0; layer < LAYERS; ++layer) {
+        for (int y = first.y; y <= c1.y; ++y)
+            for (int x = first.x; x <= c1.x; ++x) {
+                vec2 a, b;
+                float area;
+#if PRIMITIVE == PRIMITIVE_MICROPATCH
+                bool hit = micropatch(p, layer, l, ivec2(x, y), a, b, area);
+#else
+                bool hit = microquad(p, layer, l, ivec2(x, y), a, b, area);
+#endif
+                if (!hit) continue;
+                o.area += area;
+#if BITS > 0
+                Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
+                for (int r = s.rows.x; r < s.rows.y; ++r) o.bits[r] |= span_row(s, r);
+#endif
+            }
+        count += float((c1.x - first.x + 1) * (c1.y - first.y + 1));
+    }
+    return o;
+}
+
+// Resolve (§3, §3.3): visibility from the gathered occlusion — unset valid bits / valid bits, weighted by
+// the light's colour and/or each sample's unoccluded contribution; or GBP06's area, clamped to 1.
+void resolve(Pixel p, Occlusion o, inout Result res) {
+    res.a_vis = 1.0 - o.area;
+#if BITS > 0
+    // Samples outside the light's shape never count.
+    float lit = 0.0;
+    for (int i = 0; i < BITS; ++i) lit += float(bitCount(u_valid[i] & ~o.bits[i]));
+    res.v = lit / u_valid_count;
+#if TEXTURED || WEIGHTED
+    vec4 sum_lit = vec4(0.0), sum_all = vec4(0.0);
+    for (int i = 0; i < BITS; ++i) {
+        uint m = u_valid[i];
+        while (m != 0u) {
+            int k = findLSB(m);
+            m &= m - 1u;
+#if TEXTURED
+            vec4 w = texelFetch(u_sample_color, ivec2(k, i), 0);
+#else
+            vec4 w = vec4(1.0);
+#endif
+#if WEIGHTED
+            w *= sample_weight(p, i, k);
+#endif
+            sum_all += w;
+            if ((o.bits[i] & (1u << uint(k))) == 0u) sum_lit += w;
+        }
+    }
+    if (sum_all.a > 0.0) res.v = sum_lit.a / sum_all.a;      // luminance-weighted scalar visibility
+#if TEXTURED
+    res.rgb = sum_lit.rgb / max(sum_all.rgb, vec3(1e-30));  // 1e-30: a channel the light does not emit
+#endif
+#endif
+#else
+    res.v = clamp(res.a_vis, 0.0, 1.0);
+#if TEXTURED
+    res.rgb = vec3(res.v);
+#endif
+#endif
+}
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
     if (!pixel_lit(px)) {
         imageStore(u_visibility, px, vec4(1.0));
-        imageStore(u_info, px, vec4(-1.0, 0.0, 0.0, 1.0));
+        imageStore(u_info, px, vec4(float(CLASS_UNREACHED), 0.0, 0.0, 1.0));
 #if TEXTURED
         imageStore(u_rgb, px, vec4(1.0));
 #endif
         return;
     }
-    g_r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
-    g_d = g_r.map.z;
-    g_tex = (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
-    g_tp = window_coords(g_r.local);
-    float d_biased = g_d - g_r.bias;
-
-    float cls = 0.0, level = 0.0, count = 0.0;    // class: 0 lit, 1 umbra, 2 backprojected
-    float v = 1.0, a_vis = 1.0;
-    vec3 rgb = vec3(1.0);
-
+    Pixel p = make_pixel(px);
+    Result res = Result(1.0, float(CLASS_LIT), 0.0, 0.0, 1.0, vec3(1.0));
     if (u_delta == 1) {
-        v = map_lit(u_depth, ivec2(floor(g_r.map.xy)), d_biased);
-        cls = v > 0.5 ? 0.0 : 1.0;
-        a_vis = v;
-        rgb = vec3(v);
+        // A light without extent: the plain hard shadow-map test.
+        float v = map_lit(u_depth, ivec2(floor(p.r.map.xy)), p.d - p.r.bias);
+        res = Result(v, float(v > 0.5 ? CLASS_LIT : CLASS_UMBRA), 0.0, 0.0, v, vec3(v));
     } else {
         ivec2 lo, hi;
-        bool inside = search_area(u_light_depth_range.x, lo, hi);   // pyramid ∩ near plane (§2.1, §5)
-        int state = inside ? 2 : 0;
-#if REFINE > 0
-        // §5: bound the area's depth range, classify, refine the area with z_min, bound again (finer), classify,
-        // refine once more before any micro-occluder is touched.
-        for (int pass = 0; pass < 2 && state == 2; ++pass) {
-            vec2 zr = area_bound(lo, hi, pass);
-            // The receiver plane's depth over the area: 1/z is linear in the window, so the corners bound it.
-            float plo = d_biased, phi = d_biased;
-            for (int i = 0; i < 4; ++i) {
-                vec2 corner = vec2((i & 1) == 0 ? lo.x : hi.x + 1, (i >> 1) == 0 ? lo.y : hi.y + 1);
-                float pz = receiver_depth_at(g_r, corner);
-                plo = min(plo, pz);
-                phi = max(phi, pz);
-            }
-            if (zr.x >= phi || zr.x >= g_d) state = 0;          // nothing nearer than the receiver: lit
-            else if (zr.y < plo) state = 1;                     // everything nearer, no gap: umbra
-            else if (!search_area(zr.x, lo, hi)) state = 0;
-        }
-#endif
-        if (state == 0) {
-            v = 1.0; cls = 0.0; a_vis = 1.0;
-        } else if (state == 1) {
-            v = 0.0; cls = 1.0; a_vis = 0.0; rgb = vec3(0.0);
-        } else {
-            cls = 2.0;
-            // Budget (§5): the finest level whose grid covers the area with at most b (microquads: b − 1)
-            // cells per side; sampling positions stay on that level's grid.
-            int extra = PRIMITIVE == 1 ? 1 : 0;
-            int l = 0;
-            while (l < u_levels - 1 && any(greaterThan((hi >> l) - (lo >> l) + 1 + extra, ivec2(u_budget)))) ++l;
-            level = float(l);
-            ivec2 c0 = lo >> l, c1 = hi >> l;
-            g_area = 0.0;
-#if BITS > 0
-            for (int i = 0; i < BITS; ++i) g_occ[i] = 0u;
-#endif
-            for (int layer = 0; layer < LAYERS; ++layer) {
-#if PRIMITIVE == 0
-                for (int y = c0.y; y <= c1.y; ++y)
-                    for (int x = c0.x; x <= c1.x; ++x) micropatch(layer, l, ivec2(x, y));
-                count += float((c1.x - c0.x + 1) * (c1.y - c0.y + 1));
-#else
-                for (int y = c0.y - 1; y <= c1.y; ++y)
-                    for (int x = c0.x - 1; x <= c1.x; ++x) microquad(layer, l, ivec2(x, y));
-                count += float((c1.x - c0.x + 2) * (c1.y - c0.y + 2));
-#endif
-            }
-            a_vis = 1.0 - g_area;                                // unclamped (drives §3.1 post-filtering)
-#if BITS > 0
-            // Visibility = unset valid bits / valid bits (§3); samples outside the light's shape never count.
-            float lit = 0.0;
-            for (int i = 0; i < BITS; ++i) lit += float(bitCount(u_valid[i] & ~g_occ[i]));
-            v = lit / u_valid_count;
-#if TEXTURED || WEIGHTED
-            // Weighted counts: §3.3's coloured light (each sample weighted by the light's colour there) and/or
-            // each sample's unoccluded contribution at the receiver.
-            vec4 sum_lit = vec4(0.0), sum_all = vec4(0.0);
-            for (int i = 0; i < BITS; ++i) {
-                uint m = u_valid[i];
-                while (m != 0u) {
-                    int k = findLSB(m);
-                    m &= m - 1u;
-#if TEXTURED
-                    vec4 w = texelFetch(u_sample_color, ivec2(k, i), 0);
-#else
-                    vec4 w = vec4(1.0);
-#endif
-#if WEIGHTED
-                    w *= sample_weight(i, k);
-#endif
-                    sum_all += w;
-                    if ((g_occ[i] & (1u << uint(k))) == 0u) sum_lit += w;
-                }
-            }
-            if (sum_all.a > 0.0) v = sum_lit.a / sum_all.a;      // luminance-weighted scalar visibility
-#if TEXTURED
-            rgb = sum_lit.rgb / max(sum_all.rgb, vec3(1e-30));
-#endif
-#endif
-#else
-            v = clamp(a_vis, 0.0, 1.0);                          // GBP06: accumulated area, clamped to 1
-#if TEXTURED
-            rgb = vec3(v);
-#endif
-#endif
+        int cls = classify(p, lo, hi);
+        if (cls == CLASS_UMBRA) {
+            res = Result(0.0, float(CLASS_UMBRA), 0.0, 0.0, 0.0, vec3(0.0));
+        } else if (cls == CLASS_BACKPROJECTED) {
+            res.cls = float(CLASS_BACKPROJECTED);
+            Occlusion o = gather(p, lo, hi, res.level, res.count);
+            resolve(p, o, res);
         }
     }
-    imageStore(u_visibility, px, vec4(clamp(v, 0.0, 1.0)));
-    imageStore(u_info, px, vec4(cls, level, count, a_vis));
+    imageStore(u_visibility, px, vec4(clamp(res.v, 0.0, 1.0)));
+    imageStore(u_info, px, vec4(res.cls, res.level, res.count, res.a_vis));
 #if TEXTURED
-    imageStore(u_rgb, px, vec4(clamp(rgb, 0.0, 1.0), 1.0));
+    imageStore(u_rgb, px, vec4(clamp(res.rgb, 0.0, 1.0), 1.0));
 #endif
 }

@@ -5,6 +5,7 @@
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #include "common/sampling.glsl"
+#include "common/penumbra.glsl"
 
 uniform sampler2D u_depth_map;
 uniform vec2 u_light_half;
@@ -16,7 +17,7 @@ layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 
 // Penumbra half-extent in texels (x, y) for a blocker at depth z seen from receiver depth d.
 vec2 penumbra_texels(float z, float d) {
-    float spread = u_light_ortho == 1 ? max(d - z, 0.0) : max(1.0 / max(z, 1e-30) - 1.0 / d, 0.0);
+    float spread = penumbra_spread_clamped(z, d, u_light_ortho);
     return min(u_light_half * spread / u_texel_tan, vec2(u_max_radius));
 }
 

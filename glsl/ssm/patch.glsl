@@ -12,6 +12,7 @@
 // so the patch covers the axis-aligned rectangle [(lo - t)/s, (hi - t)/s] of the light, whose half extent
 // is h (metres, or tan(angle/2) for a sun). Normalising the light to [0, 1]² (the paper's MOV_SAT / SUB /
 // MUL trick) the hidden fraction is the product of the two clamped interval lengths.
+#include "common/penumbra.glsl"
 #ifndef SSM_WEIGHTED
 #define SSM_WEIGHTED 0                  // 1: occlusion weighted by irradiance (see weighted_fraction)
 #endif
@@ -31,7 +32,7 @@ vec2 ssm_window(vec2 texel_pos) {
 }
 
 bool depth_valid(float z) {
-    return z > 0.0 && z < 1.0e30;
+    return z > 0.0 && z < EMPTY_DEPTH;
 }
 
 #if SSM_WEIGHTED
@@ -52,7 +53,7 @@ float ff_rect(vec4 r) {          // x0, y0, x1, y1
 // Hidden share of the light's irradiance at a receiver at window position t, depth zr, for the overlap `ab`
 // (normalised light coordinates [0, 1]²). Perspective views only (a sun's directions are all equal).
 float weighted_fraction(vec4 ab, vec2 t, float zr) {
-    vec2 h = max(u_half, vec2(1e-9));
+    vec2 h = max(u_half, vec2(1e-9));      // metres (tan for a sun): a zero-size light still divides
     vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
     vec4 light = vec4(-h, h) / zr - t.xyxy;
     float total = ff_rect(light);
@@ -65,8 +66,8 @@ float weighted_fraction(vec4 ab, vec2 t, float zr) {
 float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h, float texel_world_1, vec2 t) {
     // No texel-sized bias is needed: a surface never occludes its own object (the ids differ), so only
     // rasterisation rounding between two objects' maps has to be absorbed (relative 1e-5).
-    if (!(zr > 0.0 && zr < 1.0e30) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
-    float s = u_ortho == 1 ? zr - zo : inv_zo - 1.0 / zr;
+    if (!(zr > 0.0 && zr < EMPTY_DEPTH) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
+    float s = u_ortho == 1 ? zr - zo : inv_zo - 1.0 / zr;     // penumbra_spread, 1/zo hoisted per patch
     vec2 k = inv_2h / s;
     vec4 ab = clamp(vec4(0.5) + d * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
@@ -82,12 +83,12 @@ float patch_occlusion(vec2 patch_texel, float zo, vec2 t_texel, float zr) {
     if (!depth_valid(zr)) return 0.0;
     vec2 tt = ssm_texel_tan();
     if (zo >= zr * (1.0 - u_bias_texels)) return 0.0;
-    float s = u_ortho == 1 ? zr - zo : 1.0 / zo - 1.0 / zr;
+    float s = penumbra_spread(zo, zr, u_ortho);
     if (!(s > 0.0)) return 0.0;
     vec2 t = ssm_window(t_texel);
     vec2 lo = ssm_window(patch_texel), hi = lo + tt;
     // Light [-h, h] → [0, 1]:  a = 1/2 + (lo - t) / (2 h s).  Clamping keeps the infinities finite.
-    vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);
+    vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);    // 1e-9 as in weighted_fraction
     vec4 ab = clamp(vec4(0.5) + vec4(lo - t, hi - t) * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
 #if SSM_WEIGHTED

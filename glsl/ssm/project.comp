@@ -26,8 +26,8 @@ float tap(ivec2 t, float d, float tol, out float w) {
     if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) return 0.0;
     float zn = texelFetch(u_recv_near, t, 0).r;
     float zf = texelFetch(u_recv_far, t, 0).r;
-    if (!(zn > 0.0 && zn < 1.0e30)) return 0.0;
-    if (!(zf > 0.0 && zf < 1.0e30)) zf = zn;
+    if (!(zn > 0.0 && zn < EMPTY_DEPTH)) return 0.0;
+    if (!(zf > 0.0 && zf < EMPTY_DEPTH)) zf = zn;
     if (d < zn - tol || d > zf + tol) return 0.0;
     vec2 occ = texelFetch(u_ssm_front, t, 0).rg;
     if (u_two_pass == 1) occ = max(occ, texelFetch(u_ssm_back, t, 0).rg);
@@ -36,7 +36,7 @@ float tap(ivec2 t, float d, float tol, out float w) {
     // tolerance of both); strictly in between: interpolated by depth.
     float a = abs(d - zn), b = abs(d - zf);
     if (min(a, b) <= tol) return a <= b ? occ.r : occ.g;
-    return mix(occ.r, occ.g, (d - zn) / max(zf - zn, 1e-30));
+    return mix(occ.r, occ.g, (d - zn) / max(zf - zn, 1e-30));   // metres: one receiver layer (zf = zn)
 }
 
 void main() {
@@ -52,9 +52,10 @@ void main() {
         vec3 m = map_coords(l);
         vec3 n = mat3(u_light_view) * ng;
         vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l);
-        float cos_t = clamp(abs(dot(n, to_light)), 1e-3, 1.0);
+        float cos_t = clamp(abs(dot(n, to_light)), 1e-3, 1.0);   // cosine floor: tan_t stays finite
         float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
-        // Depth may drift over a 1.5-texel bilinear footprint on a slope, plus rasterisation slack.
+        // Depth may drift over a 1.5-texel bilinear footprint on a slope, plus rasterisation slack (1e-4
+        // of the depth, metres per metre: float32 rounding of rasterised depths with margin).
         float tol = texel_world(max(m.z, 0.0)) * (1.0 + 1.5 * tan_t) + 1e-4 * m.z;
         vec2 q = m.xy - 0.5;
         ivec2 i = ivec2(floor(q));
@@ -64,7 +65,8 @@ void main() {
         float o10 = tap(i + ivec2(1, 0), m.z, tol, w10);
         float o01 = tap(i + ivec2(0, 1), m.z, tol, w01);
         float o11 = tap(i + ivec2(1, 1), m.z, tol, w11);
-        // A small floor keeps a valid tap when the bilinear weight falls on an invalid one.
+        // A small floor (1e-3 of a tap's weight, unitless) keeps a valid tap when the bilinear weight falls on
+        // an invalid one.
         w00 *= (1.0 - f.x) * (1.0 - f.y) + 1e-3;
         w10 *= f.x * (1.0 - f.y) + 1e-3;
         w01 *= (1.0 - f.x) * f.y + 1e-3;
@@ -75,8 +77,8 @@ void main() {
             // Abutting micro-patches tile the light exactly in theory; their float32 sum misses 1 by
             // ~M·1e-7 (3.6e-5 at 256²). Snap that round-off so umbrae are exactly 0 and lit texels 1.
             float occ = clamp(raw, 0.0, 1.0);
-            if (occ > 1.0 - 1e-4) occ = 1.0;
-            if (occ < 1e-6) occ = 0.0;
+            if (occ > 1.0 - 1e-4) occ = 1.0;      // fraction of the light: above the round-off bound
+            if (occ < 1e-6) occ = 0.0;            // fraction of the light: below one texel's float32 error
             v = 1.0 - occ;
         }
     }

@@ -1,5 +1,5 @@
 // SSM scatter as a compute pass (the alternative to instanced quads): one invocation per micro-patch loops
-// over its penumbra extent and adds the hidden fraction, in fixed point (2^-24 units), with integer image
+// over its penumbra extent and adds the hidden fraction, in fixed point (1/FIXED_POINT units), with integer image
 // atomics — exact and order-independent, but serial per patch.
 #include "ssm/patch.glsl"
 layout(local_size_x = 64) in;
@@ -12,7 +12,6 @@ layout(r32ui, binding = 1) uniform uimage2D u_sum_near;
 layout(r32ui, binding = 2) uniform uimage2D u_sum_far;
 uniform sampler2D u_receivers;   // nearest receiver depth, object; farthest receiver depth, object
 uniform int u_count;
-const float FIXED = 16777216.0;
 
 void main() {
     int index = int(gl_GlobalInvocationID.x);
@@ -28,8 +27,8 @@ void main() {
             vec4 z = texelFetch(u_receivers, texel, 0);
             float on = z.y == p.data.w ? 0.0 : patch_occlusion(p.data.xy, p.data.z, centre, z.x);
             float of = z.w == p.data.w ? 0.0 : patch_occlusion(p.data.xy, p.data.z, centre, z.z);
-            if (on > 0.0) imageAtomicAdd(u_sum_near, texel, uint(on * FIXED + 0.5));
-            if (of > 0.0) imageAtomicAdd(u_sum_far, texel, uint(of * FIXED + 0.5));
+            if (on > 0.0) imageAtomicAdd(u_sum_near, texel, uint(on * FIXED_POINT + 0.5));
+            if (of > 0.0) imageAtomicAdd(u_sum_far, texel, uint(of * FIXED_POINT + 0.5));
         }
     }
 }

@@ -14,7 +14,7 @@ void main() {
     vec4 d = v_lohi - t.xyxy;
     vec2 tt = ssm_texel_tan();
     float tw1 = max(tt.x, tt.y);
-    vec2 inv_2h = 0.5 / max(u_half, vec2(1e-9));
+    vec2 inv_2h = 0.5 / max(u_half, vec2(1e-9));    // metres (tan for a sun): a zero-size light still divides
     vec4 z = texelFetch(u_receivers, texel, 0);
     // An object does not shadow itself (the caster/receiver split applied per object).
     float on = z.y == v_depth.z ? 0.0 : patch_occlusion_fast(d, v_depth.x, v_depth.y, z.x, inv_2h, tw1, t);

@@ -1,0 +1,41 @@
+"""A light's extent in its light view, and the penumbra it casts: the relation every soft-shadow technique
+rests on, written once here (and once in GLSL, glsl/common/penumbra.glsl).
+
+Similar triangles through an occluder point at depth z (from the light plane) seen from a receiver at depth
+d: a light of half extent h widens the occluder's shadow on the receiver's window by h·s with the spread
+
+    s = 1/z − 1/d      (perspective view: window units are tangents at unit depth)
+    s = d − z          (a sun's orthographic view: h is tan(angle/2), window units are metres)
+
+(Atty et al. 2006 §3.3–3.4; the same pyramid bounds Schwarz & Stamminger's search area, §2.1, and PCSS's
+penumbra estimate)."""
+from __future__ import annotations
+
+import math
+
+from .snapshot import AREA, SUN, Light
+
+
+def penumbra_spread(z, d, ortho: bool):
+    """Window units of penumbra per unit of light half extent between an occluder at depth z and a
+    receiver at depth d (scalars or numpy arrays; no clamping: negative when z lies behind d)."""
+    return d - z if ortho else 1.0 / z - 1.0 / d
+
+
+def light_half_extent(light: Light, face=None) -> tuple[float, float]:
+    """Half extent of the light in its view's frame: metres (area: half its sides; sphere: its radius),
+    or tan(angle/2) for a sun. `face`: the turn of a cube-face view (LightView.face), if the view is one."""
+    if light.kind == AREA:
+        half = (light.size_x / 2.0, light.size_y / 2.0)
+        if face is None:
+            return half
+        # A side face sees the area light at an angle: its extent projected onto the face's plane (kept above
+        # 5 % of the light's size, so kernels built on it never collapse).
+        import numpy as np
+        corners = np.array([[sx * half[0], sy * half[1], 0.0] for sx in (-1, 1) for sy in (-1, 1)])
+        projected = np.max(np.abs(corners @ np.asarray(face, float).T)[:, :2], axis=0)
+        return tuple(float(v) for v in np.maximum(projected, 0.05 * max(half)))
+    if light.kind == SUN:
+        t = math.tan(light.angle / 2.0)
+        return (t, t)
+    return (light.radius, light.radius)

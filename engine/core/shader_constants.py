@@ -1,0 +1,33 @@
+"""Numbers the shaders and the Python side must agree on, defined once here. gpu/programs.py writes each as a
+`#define NAME value` at the top of every program, so GLSL names them instead of repeating a literal."""
+from __future__ import annotations
+
+# Empty-texel sentinels (linear light depth, metres).
+NO_OCCLUDER = 3.0e38        # what a depth map holds where nothing was drawn: beyond any scene, below float max
+EMPTY_DEPTH = 1.0e30        # a depth at or beyond this is an empty texel (NO_OCCLUDER), never a surface
+
+# BACKPROJECTION's per-pixel classes (u_info.r; the BP Class debug pass and the per-light stats).
+CLASS_UNREACHED = -1        # the light does not reach the pixel
+CLASS_LIT = 0               # proven fully lit by the search refinement
+CLASS_UMBRA = 1             # proven in umbra
+CLASS_BACKPROJECTED = 2     # micro-occluders were backprojected
+
+# BACKPROJECTION's search refinement (the REFINE define) and micro-occluder (PRIMITIVE define).
+REFINE_NONE, REFINE_HSM, REFINE_MSSM = 0, 1, 2
+PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD = 0, 1
+
+# REFERENCE's sample weights (u_weight_mode).
+WEIGHT_NONE = 0             # plain average of the hard maps
+WEIGHT_AREA = 1             # cosθ_receiver · cosθ_light / d² (planar emitter)
+WEIGHT_SPHERE = 2           # cosθ_receiver / d² (sphere light's great disk)
+
+# SSM compute scatter: fixed-point units per 1.0 of hidden light (2^24: ≤ 256 full occlusions fit a u32).
+FIXED_POINT = float(1 << 24)
+
+DEFINES = {name: value for name, value in dict(globals()).items()
+           if name.isupper() and isinstance(value, (int, float)) and not isinstance(value, bool)}
+
+
+def glsl_literal(value) -> str:
+    """A Python number as a GLSL literal: ints as they are, floats always with an exponent."""
+    return str(value) if isinstance(value, int) else f"{value:.9e}"

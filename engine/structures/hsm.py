@@ -1,0 +1,62 @@
+"""Hierarchical min/max shadow map (GBP06, recalled in Schwarz & Stamminger 2007 §2.1/§5): per depth layer a
+power-of-two padded RG32F mip pyramid whose level-l texel holds the (min, max) depth of 2^l × 2^l texels."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..gpu.programs import program, set_uniforms
+from . import structure
+from .mssm import level_count, mssm_levels
+from .peeled_layers import PEELED_LAYERS
+
+HSM = "hsm"
+
+
+@dataclass
+class Hsm:
+    pyramids: list              # per depth layer: RG32F mipmapped texture, or None (read from the MSSM)
+    levels: int
+    padded: tuple               # (width, height) of level 0, powers of two
+
+    @property
+    def nbytes(self) -> int:
+        pw, ph = self.padded
+        per = sum(max(pw >> l_, 1) * max(ph >> l_, 1) * 8 for l_ in range(self.levels))
+        return per * sum(p is not None for p in self.pyramids)
+
+
+def build_pyramid(frame, depth, width: int, height: int):
+    """Min/max pyramid of one R32F depth map. Returns (texture, levels, padded size)."""
+    pw, ph = 1 << max(width - 1, 0).bit_length(), 1 << max(height - 1, 0).bit_length()
+    levels = level_count(pw, ph)
+    tex = frame.texture((pw, ph), 2)
+    tex.build_mipmaps(0, levels - 1)
+    tex.filter = (0x2600, 0x2600)       # GL_NEAREST
+    prog = program(frame.worker, compute="backprojection/hsm.comp")
+    depth.use(location=0)
+    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
+    for l_ in range(levels):
+        size = (max(pw >> l_, 1), max(ph >> l_, 1))
+        tex.bind_to_image(0, read=False, write=True, level=l_)
+        if l_ > 0:
+            tex.bind_to_image(1, read=True, write=False, level=l_ - 1)
+        set_uniforms(prog, {"u_first": int(l_ == 0), "u_dst_size": size})
+        prog.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
+        frame.ctx.memory_barrier()
+    return tex, levels, (pw, ph)
+
+
+@structure(HSM, requires=(PEELED_LAYERS,))
+def build(frame, lc, mssm_first: bool = False):
+    """`mssm_first`: layer 0 is read from an MSSM (built as its own structure); its pyramid is left out when
+    that MSSM holds every level."""
+    w, h = lc.view.width, lc.view.height
+    pw, ph = 1 << max(w - 1, 0).bit_length(), 1 << max(h - 1, 0).bit_length()
+    pyramids, levels = [], level_count(pw, ph)
+    with frame.timings.stage("bp_hsm"):
+        for i, depth in enumerate(lc.structures[PEELED_LAYERS].maps):
+            if i == 0 and mssm_first and mssm_levels(w, h) >= level_count(w, h):
+                pyramids.append(None)
+                continue
+            pyramids.append(build_pyramid(frame, depth, w, h)[0])
+    return Hsm(pyramids, levels, (pw, ph))

@@ -1,0 +1,116 @@
+"""The soft shadow map itself (Atty et al. 2006, §3.4, appendix A): every micro-patch of SSM's occluder maps
+scattered over its penumbra extent, summing the fraction of the light it hides into an RG texture (r: for
+the nearest receiver, g: for the farthest). One map per occluder map (front; back faces for two passes)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..gpu.frame import resource_bytes
+from ..gpu.programs import bind_samplers, program, set_uniforms
+from ..gpu.state import gl_state
+from . import structure
+from .ssm_maps import SSM_MAPS
+
+SOFT_SHADOW_MAP = "soft_shadow_map"
+
+
+@dataclass
+class SoftShadowMap:
+    front: object               # RG texture: summed occlusion of the front occluder map
+    back: object | None         # the back-face map's (two passes), or None
+
+    @property
+    def nbytes(self) -> int:
+        return resource_bytes([self.front, self.back])
+
+
+@structure(SOFT_SHADOW_MAP, requires=(SSM_MAPS,))
+def build(frame, lc, precision: str, method: str, weighted: bool):
+    """`precision`: FLOAT32, HALF or HALF_BATCHED blending (appendix A); `method`: RASTER (instanced quads,
+    additive blending) or COMPUTE (fixed-point atomics); `weighted`: irradiance-weighted occlusion. None
+    when the maps were skipped."""
+    maps = lc.structures[SSM_MAPS]
+    if maps.skipped:
+        return None
+    frame.progress.check()
+    with frame.timings.stage("ssm_scatter"):
+        ssms = [scatter(frame, maps, rows, precision, method, weighted) if len(rows) else None
+                for rows in maps.patches]
+    front = ssms[0] if ssms[0] is not None else _zero(frame, maps.view)
+    back = ssms[1] if len(ssms) > 1 and ssms[1] is not None else None
+    return SoftShadowMap(front, back)
+
+
+def _zero(frame, view):
+    tex = frame.texture((view.width, view.height), 2)
+    tex.write(np.zeros((view.height, view.width, 2), np.float32).tobytes())
+    return tex
+
+
+def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
+    """Sum every micro-patch's hidden light fraction into an RG soft shadow map (r: nearest receiver,
+    g: farthest). §3.4 on the GPU; precision and batching per appendix A."""
+    ctx, view = frame.ctx, maps.view
+    size = (view.width, view.height)
+    defines = {"SSM_WEIGHTED": int(weighted)}
+    uniforms = {"u_light_window_ssm": view.window, "u_ssm_size": size, "u_half": maps.half,
+                "u_ortho": int(view.is_ortho), "u_bias_texels": maps.bias}
+    patches = frame.buffer(np.ascontiguousarray(rows, np.float32).tobytes())
+    patches.bind_to_storage_buffer(0)
+    m = len(rows)
+    receivers = maps.maps["receivers"]
+    if method == "COMPUTE":
+        for binding in (1, 2):
+            t = frame.own(ctx.texture(size, 1, dtype="u4"))
+            t.write(np.zeros(size[0] * size[1], np.uint32).tobytes())
+            t.bind_to_image(binding, read=True, write=True)
+        prog = program(frame.worker, compute="ssm/scatter.comp", defines=defines)
+        bind_samplers(prog, {"u_receivers": receivers})
+        set_uniforms(prog, {**uniforms, "u_count": m})
+        prog.run((m + 63) // 64, 1, 1)
+        ctx.memory_barrier()
+        ssm = frame.texture(size, 2)
+        ssm.bind_to_image(3, read=False, write=True)
+        resolve = program(frame.worker, compute="ssm/resolve.comp", defines=defines)
+        set_uniforms(resolve, {"u_image_size": size})
+        resolve.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
+        ctx.memory_barrier()
+        return ssm
+
+    dtype = "f4" if precision == "FLOAT32" else "f2"
+    prog = program(frame.worker, "ssm/scatter.vert", "ssm/scatter.frag", defines=defines)
+    bind_samplers(prog, {"u_receivers": receivers})
+    set_uniforms(prog, uniforms)
+    vao = frame.own(ctx.vertex_array(prog, []))
+    ssm = frame.texture(size, 2, dtype)
+    fbo = frame.own(ctx.framebuffer(color_attachments=[ssm]))
+    fbo.clear(0.0, 0.0, 0.0, 0.0)
+    with gl_state(ctx, depth_test=False, cull=False, additive=True):
+        if precision != "HALF_BATCHED":
+            fbo.use()
+            set_uniforms(prog, {"u_first": 0})
+            vao.render(ctx.TRIANGLE_STRIP, vertices=4, instances=m)
+        else:
+            # Appendix A: split the M micro-patches into ⌊√M⌋ batches, sum each in FP16, add the batch
+            # sums into the total (also FP16): small values are added only to small or medium ones.
+            batches = max(1, int(math.isqrt(m)))
+            batch = frame.texture(size, 2, "f2")
+            batch_fbo = frame.own(ctx.framebuffer(color_attachments=[batch]))
+            add = program(frame.worker, "ssm/fullscreen.vert", "ssm/add.frag")
+            add_vao = frame.own(ctx.vertex_array(add, []))
+            edges = np.linspace(0, m, batches + 1).round().astype(int)
+            for first, last in zip(edges[:-1], edges[1:]):
+                if last <= first:
+                    continue
+                batch_fbo.use()
+                batch_fbo.clear(0.0, 0.0, 0.0, 0.0)
+                prog["u_first"].value = int(first)
+                bind_samplers(prog, {"u_receivers": receivers})
+                vao.render(ctx.TRIANGLE_STRIP, vertices=4, instances=int(last - first))
+                fbo.use()
+                bind_samplers(add, {"u_batch": batch})
+                add_vao.render(ctx.TRIANGLES, vertices=3)
+    return ssm

@@ -1,0 +1,249 @@
+"""Soft Shadow Maps' per-light maps (Atty et al. 2006, §3.1–3.3, §3.5): occluder maps of the casters (front-most;
+farthest back faces for the two-pass method) and receiver maps (nearest; farthest receiver) from the light
+centre, with texels of the light's aspect ratio, each texel tagged with its object index; and the micro-patch
+list with each patch's penumbra extent (§3.3, on the CPU as in the paper). The occluder-map resolution is
+lowered until the scatter's estimated work fits the budget, so maps and patch list are one structure.
+
+Also here: the object-role split (Object → Penumbra → Shadow Role) and the camera-view receiver mask that
+SSM's projection reads (`receiver_mask`, its own structure)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core import lightview
+from ..core.light_shape import light_half_extent, penumbra_spread
+from ..core.lightview import LightView
+from ..core.shader_constants import EMPTY_DEPTH, NO_OCCLUDER
+from ..gpu.frame import resource_bytes
+from ..gpu.programs import program
+from . import structure
+
+SSM_MAPS = "ssm_maps"
+RECEIVER_MASK = "ssm_receiver_mask"
+CASTER_ROLES = ("CASTER", "BOTH")
+RECEIVER_ROLES = ("RECEIVER", "BOTH")
+# Relative depth separation (fraction of the receiver's linear depth) a micro-patch needs to occlude a
+# receiver, zo < zr·(1 − ε): keeps a receiver's own texels in the occluder map from shadowing it.
+DEPTH_EPSILON = 1e-5
+
+
+def split_roles(snap) -> tuple[list[int], list[int]]:
+    """Object indices whose micro-patches occlude (CASTER/BOTH and casting shadows) and whose surfaces
+    receive (RECEIVER/BOTH and seen by the camera)."""
+    casters = [i for i, o in enumerate(snap.objects) if o.caster and getattr(o, "role", "BOTH") in CASTER_ROLES]
+    receivers = [i for i, o in enumerate(snap.objects)
+                 if o.receiver and getattr(o, "role", "BOTH") in RECEIVER_ROLES]
+    return casters, receivers
+
+
+def role_warnings(snap) -> list[str]:
+    casters, receivers = split_roles(snap)
+    out = []
+    if not casters:
+        out.append(f"SSM: scene '{snap.name}' has no object with Shadow Role Caster or Both: no shadows.")
+    if not receivers:
+        out.append(f"SSM: scene '{snap.name}' has no object with Shadow Role Receiver or Both: no shadows.")
+    return out
+
+
+def ssm_view(view: LightView, half, size: int) -> LightView:
+    """The pipeline's light view with texels of the light's aspect ratio (§3.2: micro-patches axis-aligned
+    with the light and of its aspect ratio); the longer side in texels gets `size`. The window grows
+    symmetrically on the short side to a whole number of texels."""
+    x0, x1, y0, y1 = view.window
+    # 1e-30 window units: a degenerate (zero-width) window still divides; 1e-9 texels: a window that is a
+    # whole number of texels up to rounding does not get one more.
+    w, h = max(x1 - x0, 1e-30), max(y1 - y0, 1e-30)
+    aspect = float(half[0]) / float(half[1]) if half[0] > 0 and half[1] > 0 else 1.0   # texel width / height
+    if w >= h * aspect:
+        width = size
+        tw = w / width
+        th = tw / aspect
+        height = int(min(max(math.ceil(h / th - 1e-9), 1), size))
+        grow = (height * th - h) / 2.0
+        window = (x0, x1, y0 - grow, y1 + grow)
+    else:
+        height = size
+        th = h / height
+        tw = th * aspect
+        width = int(min(max(math.ceil(w / tw - 1e-9), 1), size))
+        grow = (width * tw - w) / 2.0
+        window = (x0 - grow, x1 + grow, y0, y1)
+    proj = (lightview.ortho if view.is_ortho else lightview.frustum)(window, view.near, view.far)
+    return LightView(view.view, proj, width, height, view.near, view.far, view.is_ortho,
+                     tuple(float(v) for v in window), view.clamped)
+
+
+def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_texels: float):
+    """Micro-patches of an occluder map and their penumbra extents (§3.3).
+
+    The extent of a patch [lo, hi] at depth zo on the plane of a receiver at depth zr is
+    [lo − h·s, hi + h·s] with s = penumbra_spread(zo, zr) — the section of the patch's penumbra pyramid,
+    whose apex is C_L + r/(1+r)·(C_P − C_L) with r = LL'/PP' (§3.3; at zr the paper's RR' = LL'(zr − z_apex)/z_apex
+    equals the patch's projection zr/zo·PP' plus LL'(zr − zo)/zo, the same rectangle). It grows with zr, so
+    the farthest receiver depth bounds it. Returns (float32 (M, 8) rows: x0, y0, x1, y1 in texels, i, j,
+    zo, object; estimated SSM texel updates). `depth_id`: (H, W, 2) depth and object index per texel."""
+    depth, ids = depth_id[..., 0], depth_id[..., 1]
+    valid = (depth > 0.0) & (depth < EMPTY_DEPTH)
+    j, i = np.nonzero(valid)
+    if i.size == 0 or not np.isfinite(zr_max):
+        return np.zeros((0, 8), np.float32), 0.0
+    zo = depth[j, i].astype(np.float64)
+    tw, th = view.texel_size()
+    keep = zo < zr_max * (1.0 - bias_texels)
+    zo, i, j = zo[keep], i[keep], j[keep]
+    obj = ids[j, i]
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        # 1e-30 m: a patch on the light plane (zo = 0) gets a huge, finite spread instead of a division by 0.
+        s = np.maximum(penumbra_spread(np.maximum(zo, 1e-30), zr_max, view.is_ortho), 0.0)
+        gx = np.minimum(half[0] * s / tw, 4.0 * view.width)     # clamp: an occluder at the light plane
+        gy = np.minimum(half[1] * s / th, 4.0 * view.height)    # covers the map, never infinity
+    rect = np.stack([np.clip(i - gx, 0, view.width), np.clip(j - gy, 0, view.height),
+                     np.clip(i + 1 + gx, 0, view.width), np.clip(j + 1 + gy, 0, view.height)], axis=1)
+    area = np.clip(rect[:, 2] - rect[:, 0], 0, None) * np.clip(rect[:, 3] - rect[:, 1], 0, None)
+    keep = area > 0.0
+    rows = np.zeros((int(keep.sum()), 8), np.float32)
+    rows[:, 0:4] = rect[keep]
+    rows[:, 4], rows[:, 5], rows[:, 6], rows[:, 7] = i[keep], j[keep], zo[keep], obj[keep]
+    return rows, float(area[keep].sum())
+
+
+def casters_reach_receivers(light, world_to_local, half, is_ortho: bool, casters, receivers) -> bool:
+    """False when the casters' penumbrae cannot reach the visible receivers: all casters behind the
+    receivers, or their windows (widened by the largest penumbra) disjoint. Conservative: True when a box
+    reaches the light plane."""
+    def corners(box):
+        lo, hi = (np.asarray(v, float) for v in box)
+        return lightview.to_local(world_to_local, lightview.box_corners(lo, hi))
+    c, r = corners(casters), corners(receivers)
+    cd, rd = -c[:, 2], -r[:, 2]
+    if cd.min() >= rd.max():
+        return False
+    if is_ortho:
+        cw, rw = c[:, :2], r[:, :2]
+    else:
+        if cd.min() <= 1e-9 or rd.min() <= 1e-9:    # metres: a box touching the light plane reaches all
+            return True
+        cw, rw = c[:, :2] / cd[:, None], r[:, :2] / rd[:, None]
+    grow = np.asarray(half) * penumbra_spread(cd.min(), rd.max(), is_ortho)
+    lo_c, hi_c = cw.min(axis=0) - grow, cw.max(axis=0) + grow
+    lo_r, hi_r = rw.min(axis=0), rw.max(axis=0)
+    return bool(np.all(lo_c < hi_r) and np.all(lo_r < hi_c))
+
+
+@dataclass
+class SsmMaps:
+    """Maps of one light view, or `skipped` when no caster can shadow a visible receiver (then only the
+    role lists are set)."""
+    casters: list
+    receivers: list
+    half: tuple = (0.0, 0.0)                 # light half extent (metres, or tan for a sun)
+    view: LightView | None = None            # the aspect-corrected view the maps were drawn with
+    maps: dict = field(default_factory=dict)  # front, back (two-pass), near, far, receivers (packed)
+    patches: list = field(default_factory=list)     # per occluder map: (M, 8) rows of patch_list
+    bias: float = DEPTH_EPSILON
+    skipped: bool = False
+
+    @property
+    def nbytes(self) -> int:
+        return resource_bytes(self.maps) + sum(int(rows.nbytes) for rows in self.patches)
+
+
+def _draw_maps(frame, view, casters, receivers, two_pass) -> dict:
+    """Occluder maps (front-most casters; farthest back faces, §3.5) and receiver maps (nearest; farthest),
+    linear depth from the light centre and object index. Empty texels: NO_OCCLUDER (nearest) or 0
+    (farthest); index −1."""
+    prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
+    jobs = [("front", "caster", casters, False, False), ("near", "receiver", receivers, False, False),
+            ("far", "receiver", receivers, True, False)]
+    if two_pass:
+        jobs.append(("back", "caster", casters, True, True))
+    size = (view.width, view.height)
+    out = {}
+    for name, role, objects, farthest, back_only in jobs:
+        draws = [(frozenset((int(index),)), {"u_object": float(index)}) for index in objects]  # tagged draws
+        out[name] = frame.rasterise(frame.target(size, 2), prog, view.view, view.view_proj, role=role,
+                                    draws=draws, farthest=farthest, uniforms={"u_back_only": int(back_only)},
+                                    clear=(0.0 if farthest else NO_OCCLUDER, -1.0, 0.0, 0.0))
+    out["receivers"] = frame.texture(size, 4)
+    frame.dispatch("ssm/pack.comp", samplers={"u_recv_near": out["near"], "u_recv_far": out["far"]},
+                   images={0: out["receivers"]}, size=size)
+    return out
+
+
+@structure(SSM_MAPS)
+def build(frame, lc, size: int, budget: float, two_pass: bool):
+    """`size`: texels along the longer side; `budget`: SSM texel updates allowed before the maps are made
+    coarser (§5.1); `two_pass`: also the back-face occluder map (§3.5)."""
+    light = lc.light
+    for text in role_warnings(frame.snap):
+        frame.warn(text)
+    casters, receivers = split_roles(frame.snap)
+    bounds = frame.geometry.object_bounds()
+    # A flat caster every visible receiver lies on the light side of shadows nothing (a BOTH floor).
+    flags = np.zeros(len(frame.snap.objects), bool)
+    kept = []
+    for index in casters:
+        flags[:] = False
+        flags[index] = True
+        if lightview.shadowing_caster_bounds(light, bounds, flags, lc.receivers) is not None:
+            kept.append(index)
+    casters = kept
+    half = tuple(float(v) for v in light_half_extent(light, lc.view.face))
+    if not casters or not receivers:
+        frame.count(ssm_lights_skipped=1)
+        return SsmMaps(casters, receivers, half, skipped=True)
+    caster_box = (bounds[casters, 0].min(axis=0), bounds[casters, 1].max(axis=0))
+    if not casters_reach_receivers(light, lc.view.view, half, lc.view.is_ortho, caster_box, lc.receivers):
+        frame.count(ssm_lights_skipped=1)   # the casters' penumbrae fall nowhere near a visible receiver
+        return SsmMaps(casters, receivers, half, skipped=True)
+
+    bias = DEPTH_EPSILON
+    for _attempt in range(4):
+        view = ssm_view(lc.view, half, size)
+        with frame.timings.stage("ssm_maps"):
+            maps = _draw_maps(frame, view, casters, receivers, two_pass)
+            far = frame.read(maps["far"])[..., 0]
+            valid_far = (far > 0.0) & (far < EMPTY_DEPTH)
+            zr_max = float(far[valid_far].max()) if valid_far.any() else math.inf
+            lists = [patch_list(frame.read(maps["front"]), view, half, zr_max, bias)]
+            if two_pass:
+                lists.append(patch_list(frame.read(maps["back"]), view, half, zr_max, bias))
+        work = sum(w for _, w in lists)
+        if work <= budget or size <= 32:
+            break
+        new = max(32, int(size * (budget / work) ** 0.25 * 0.95))
+        frame.warn(f"SSM: light '{light.name}': occluder map lowered from {size} to {new} texels to "
+                   f"keep the scatter within ssm_budget ({work / 1e6:.0f} M texel updates)")
+        size = new
+    frame.count(ssm_patches=sum(len(p) for p, _ in lists), ssm_work=int(work), ssm_map_size=size)
+    patches = [rows for rows, _ in lists]
+    skipped = all(len(p) == 0 for p in patches)
+    if skipped:
+        frame.count(ssm_lights_skipped=1)
+    return SsmMaps(casters, receivers, half, view, maps, patches, bias, skipped)
+
+
+@structure(RECEIVER_MASK, requires=(SSM_MAPS,))
+def build_receiver_mask(frame, lc):
+    """Camera-resolution mask (g = 1) of the pixels whose nearest surface is a receiver, or None when every
+    camera-visible object is one (or the light is skipped). Depth matching alone cannot tell a CASTER-only
+    surface that lies between two receivers (seen from the light centre) from a receiver there."""
+    maps = lc.structures[SSM_MAPS]
+    if maps.skipped:
+        return None
+    receivers = maps.receivers
+    visible = [i for i, o in enumerate(frame.snap.objects) if o.receiver]
+    others = [i for i in visible if i not in set(receivers)]
+    if not others:
+        return None
+    cam = frame.snap.camera
+    prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
+    draws = [(frozenset(int(i) for i in objects), {"u_object": flag})
+             for flag, objects in ((1.0, receivers), (0.0, others))]
+    return frame.rasterise(frame.target((frame.width, frame.height), 2), prog, cam.view,
+                           cam.projection @ cam.view, role="receiver", draws=draws,
+                           clear=(0.0, 0.0, 0.0, 0.0), uniforms={"u_back_only": 0})

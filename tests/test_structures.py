@@ -1,0 +1,88 @@
+"""Per-light structures (engine/structures/): declared by the techniques, built by the pipeline once per light
+view in dependency order, each reporting its memory; techniques themselves hold no raw GL state."""
+import re
+from pathlib import Path
+
+import pytest
+
+from penumbra.engine import structures
+from penumbra.engine.core.settings import RenderSettings
+from penumbra.engine.render import pipeline
+from penumbra.engine.structures import need
+from penumbra.engine.techniques import TECHNIQUES
+from penumbra.tests.synthetic import floating_plane
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def test_plan_puts_requirements_first_once_and_keeps_asked_parameters():
+    order = structures.plan([need("hsm", mssm_first=True), need("peeled_layers", layers=3), "mssm"])
+    names = [n.name for n in order]
+    assert names.index("depth_map") < names.index("peeled_layers") < names.index("hsm")
+    assert names.index("depth_map") < names.index("mssm")
+    assert sorted(names) == sorted(set(names))
+    assert {n.name: n.kwargs for n in order}["peeled_layers"] == {"layers": 3}
+
+
+def test_plan_rejects_unknown_names_and_conflicting_parameters():
+    with pytest.raises(KeyError, match="no_such_structure"):
+        structures.plan(["no_such_structure"])
+    with pytest.raises(ValueError, match="peeled_layers"):
+        structures.plan([need("peeled_layers", layers=2), need("peeled_layers", layers=3)])
+
+
+@pytest.mark.parametrize("identifier", sorted(TECHNIQUES))
+def test_every_declared_need_has_a_builder(identifier):
+    technique = TECHNIQUES[identifier]
+    for n in structures.plan(technique.needs_for(RenderSettings(technique=identifier))):
+        assert n.name in structures.BUILDERS
+
+
+def _counting(monkeypatch):
+    calls: dict = {}
+    for name, builder in list(structures.BUILDERS.items()):
+        def build(frame, lc, _inner=builder.build, _name=name, **params):
+            calls[_name] = calls.get(_name, 0) + 1
+            return _inner(frame, lc, **params)
+        monkeypatch.setitem(structures.BUILDERS, name, structures.Builder(build, builder.requires))
+    return calls
+
+
+def test_options_decide_the_structures_and_each_is_built_once_per_light_view(monkeypatch):
+    calls = _counting(monkeypatch)
+    snap = floating_plane(32)
+    base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64)
+    r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=3))
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1}
+    memory = r.stats["structure_bytes"]
+    depth = memory["depth_map"]
+    assert depth > 0
+    assert memory["peeled_layers"] == 2 * depth       # two layers behind the depth map, same texel format
+    assert memory["hsm"] > 3 * 2 * depth               # an RG32F pyramid (≥ 4/3 of a level) per layer
+    calls.clear()
+    r = pipeline.render(snap, base.with_(bp_refinement="MSSM"))
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "mssm": 1}
+    memory = r.stats["structure_bytes"]
+    assert memory["hsm"] == 0                          # layer 0 reads the MSSM, which holds every level
+    assert memory["mssm"] >= 2 * memory["depth_map"] * 6    # RG32F, one full-resolution layer per level
+
+
+def test_ssm_structures_follow_its_options(monkeypatch):
+    calls = _counting(monkeypatch)
+    snap = floating_plane(32)
+    r = pipeline.render(snap, RenderSettings(technique="SSM").with_(ssm_map_size=32, ssm_passes="ONE"))
+    assert calls == {"ssm_maps": 1, "soft_shadow_map": 1, "ssm_receiver_mask": 1}
+    memory = r.stats["structure_bytes"]
+    assert memory["soft_shadow_map"] > 0 and memory["ssm_maps"] > memory["soft_shadow_map"]
+    assert r.stats["ssm_map_size"] == 32
+
+
+RAW_GL = re.compile(r"\bctx\.(enable|disable)\b|\.use\(|_own\(|frame\.own\(|framebuffer\(|blend_func|"
+                    r"depth_func|vertex_array\(|\.render\(")
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "engine" / "techniques").glob("*.py")), ids=lambda p: p.name)
+def test_techniques_hold_no_raw_gl_state(path):
+    hits = [f"{path.name}:{i}: {line.strip()}" for i, line in enumerate(path.read_text().splitlines(), 1)
+            if RAW_GL.search(line)]
+    assert not hits, "raw GL state in a technique (move it to gpu/ or structures/):\n" + "\n".join(hits)
