@@ -24,4 +24,4 @@ def build(name: str, frame, lc):
     return builder(frame, lc)
 
 
-from . import depth_map  # noqa: E402,F401  (registers its builder)
+from . import conservative_map, depth_map  # noqa: E402,F401  (register their builders)

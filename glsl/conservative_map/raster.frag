@@ -1,0 +1,85 @@
+// Conservative map fragment: keep the texel only if the triangle really overlaps it, write the minimum
+// conservative depth (Hasselgren et al. 2005: the plane's nearest value over the texel, clamped to the
+// triangle's own depth range) to the depth test and the R32F map, and the 128-bit triangle texel.
+#include "conservative_map/texel.glsl"
+
+flat in vec2 g_v0;
+flat in vec2 g_v1;
+flat in vec2 g_v2;
+flat in vec3 g_eta;
+
+layout(location = 0) out float f_min_depth;     // linear light depth of the minimum conservative depth
+layout(location = 1) out uvec4 f_texel;
+#ifdef CMAP_FLOAT_SLOPES
+layout(location = 2) out vec2 f_slopes;         // ablation only: dη/dx, dη/dy unquantised
+#endif
+
+float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
+
+// Separating-axis test of a triangle (texel-relative) against the texel box [−½, ½]²: the box's two axes
+// and the three edge normals. Touching counts as overlapping (conservative). A degenerate triangle (a
+// segment or a point) is tested as what it is.
+bool overlaps_texel(vec2 a, vec2 b, vec2 c) {
+    vec2 lo = min(a, min(b, c)), hi = max(a, max(b, c));
+    if (any(greaterThan(lo, vec2(0.5))) || any(lessThan(hi, vec2(-0.5)))) return false;
+    vec2 e[3] = vec2[3](b - a, c - b, a - c);
+    for (int i = 0; i < 3; ++i) {
+        vec2 axis = vec2(-e[i].y, e[i].x);
+        float pa = dot(axis, a), pb = dot(axis, b), pc = dot(axis, c);
+        float r = 0.5 * (abs(axis.x) + abs(axis.y));
+        float tol = 1e-6 * (abs(axis.x) + abs(axis.y)) * (1.0 + max(length(a), max(length(b), length(c))));
+        if (min(pa, min(pb, pc)) > r + tol || max(pa, max(pb, pc)) < -r - tol) return false;
+    }
+    return true;
+}
+
+// Texel-relative vertices pulled within the fixed-point reach: a far vertex slides along its edge that
+// passes nearest the texel (that edge's line, which decides coverage near the texel, is kept).
+vec2 pull_in(vec2 v, vec2 a, vec2 b) {
+    if (max(abs(v.x), abs(v.y)) <= VERT_REACH) return v;
+    vec2 other = abs(cross2(a - v, -v)) / max(length(a - v), 1e-20) <=
+                 abs(cross2(b - v, -v)) / max(length(b - v), 1e-20) ? a : b;
+    // Liang–Barsky: the part of segment other→v inside the reach box; keep its end nearest v.
+    vec2 d = v - other;
+    float t0 = 0.0, t1 = 1.0;
+    for (int k = 0; k < 2; ++k) {
+        if (abs(d[k]) < 1e-20) continue;
+        float ta = (-VERT_REACH - other[k]) / d[k], tb = (VERT_REACH - other[k]) / d[k];
+        t0 = max(t0, min(ta, tb));
+        t1 = min(t1, max(ta, tb));
+    }
+    return t0 <= t1 ? other + d * t1 : clamp(v, -VERT_REACH, VERT_REACH);
+}
+
+void main() {
+    vec2 centre = gl_FragCoord.xy;
+    vec2 a = g_v0 - centre, b = g_v1 - centre, c = g_v2 - centre;
+    if (!overlaps_texel(a, b, c)) discard;
+
+    // The plane η(x, y) through the three vertices (affine in map space).
+    vec2 e1 = b - a, e2 = c - a;
+    float det = cross2(e1, e2);
+    float de1 = g_eta.y - g_eta.x, de2 = g_eta.z - g_eta.x;
+    float eta_top = max(g_eta.x, max(g_eta.y, g_eta.z));
+    vec2 grad = vec2(0.0);
+    float eta_c = eta_top;
+    float area_tol = 1e-9 * (dot(e1, e1) + dot(e2, e2));
+    if (abs(det) > area_tol) {
+        grad = vec2(de1 * e2.y - de2 * e1.y, de2 * e1.x - de1 * e2.x) / det;
+        eta_c = g_eta.x + dot(grad, -a);
+    }
+    // Nearest value of the plane over the texel (the corner the gradient points to), never nearer than
+    // the triangle itself reaches (an edge-on triangle: its nearest vertex).
+    float eta_cons = min(eta_c + 0.5 * (abs(grad.x) + abs(grad.y)), eta_top);
+    gl_FragDepth = clamp(1.0 - eta_cons, 0.0, 1.0);
+    f_min_depth = depth_from_eta(clamp(eta_cons, 0.0, 1.0));
+
+    float z_c = depth_from_eta(eta_c);
+    vec2 s = -grad / slope_scale(clamp(z_c, u_light_depth_range.x, u_light_depth_range.y));
+    vec2 pa = pull_in(a, b, c), pb = pull_in(b, c, a), pc = pull_in(c, a, b);
+    f_texel = uvec4(pack_vertex(pa), pack_vertex(pb), pack_vertex(pc),
+                    pack_depth_slopes(z_c, quantise_slope(s.x), quantise_slope(s.y)));
+#ifdef CMAP_FLOAT_SLOPES
+    f_slopes = grad;
+#endif
+}
