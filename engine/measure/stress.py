@@ -35,7 +35,7 @@ from ..core.snapshot import AREA, SQUARE, Camera, Light, ObjectInfo, SceneSnapsh
 # Techniques that by design ignore the light's size (a hard map, a fixed-size filter): a soft-shadow accuracy
 # limit (mae against the oracle) does not apply to them; the classification limit (umbra stays dark, fully
 # lit stays lit) and all finiteness limits do.
-IGNORES_LIGHT_SIZE = frozenset({"HARD", "PCF"})
+IGNORES_LIGHT_SIZE = frozenset({"HARD", "PCF", "SPSM"})
 
 BASE_SETTINGS = dict(shadow_map_size=1024, reference_samples=32)
 SHADOW_LEVEL = 0.99             # V below this: shadow or penumbra (where the error metrics look)

@@ -1,6 +1,7 @@
 // Conservative map fragment: keep the texel only if the triangle really overlaps it, write the minimum
 // conservative depth (Hasselgren et al. 2005: the plane's nearest value over the texel, clamped to the
 // triangle's own depth range) to the depth test and the R32F map, and the 128-bit triangle texel.
+#include "common/light_view.glsl"
 #include "conservative_map/texel.glsl"
 
 flat in vec2 g_v0;

@@ -11,9 +11,8 @@
 // in 1/z; an ortho view: linear), 1 at the near plane and 0 at the far one. Eq. 1 extrapolates η.
 // Slopes are quantised as dimensionless slopes s = ∂z/∂(lateral texel width), so that atan(s) is the
 // surface's tilt away from facing the light: dη/dx = −s·J(z), J = −dη/dz × lateral size of one texel.
-uniform vec2 u_light_depth_range;   // near, far (linear light depth)
+// Include after common/light_view.glsl (u_light_depth_range, u_light_ortho come from there).
 uniform vec2 u_texel_window;        // window units per texel along x and y
-uniform int u_light_ortho;
 uniform float u_quant_n;            // exponent n of Q: 1 (linear in angle), 3, 5 (the paper's)
 
 const float VERT_SCALE = 64.0;
