@@ -19,17 +19,24 @@ float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
 
 // Separating-axis test of a triangle (texel-relative) against the texel box [−½, ½]²: the box's two axes
 // and the three edge normals. Touching counts as overlapping (conservative). A degenerate triangle (a
-// segment or a point) is tested as what it is.
+// segment or a point) is tested as what it is. Each edge is measured from its endpoint nearer the texel
+// along its unit direction: a vertex clipped at a near plane close to the light lands ~1e8 texels away, and
+// a dot product with it would lose whole texels in float32.
 bool overlaps_texel(vec2 a, vec2 b, vec2 c) {
     vec2 lo = min(a, min(b, c)), hi = max(a, max(b, c));
     if (any(greaterThan(lo, vec2(0.5))) || any(lessThan(hi, vec2(-0.5)))) return false;
-    vec2 e[3] = vec2[3](b - a, c - b, a - c);
+    vec2 v[3] = vec2[3](a, b, c);
     for (int i = 0; i < 3; ++i) {
-        vec2 axis = vec2(-e[i].y, e[i].x);
-        float pa = dot(axis, a), pb = dot(axis, b), pc = dot(axis, c);
-        float r = 0.5 * (abs(axis.x) + abs(axis.y));
-        float tol = 1e-6 * (abs(axis.x) + abs(axis.y)) * (1.0 + max(length(a), max(length(b), length(c))));
-        if (min(pa, min(pb, pc)) > r + tol || max(pa, max(pb, pc)) < -r - tol) return false;
+        vec2 p = v[i], q = v[(i + 1) % 3], r = v[(i + 2) % 3];
+        if (dot(p, p) > dot(q, q)) { vec2 t = p; p = q; q = t; }
+        vec2 e = q - p;
+        float len = length(e);
+        if (!(len > 1e-12)) continue;
+        vec2 axis = vec2(-e.y, e.x) / len;
+        float base = dot(axis, p);                  // the edge's line, from its near endpoint
+        float third = base + dot(axis, r - p);      // the opposite vertex
+        float h = 0.5 * (abs(axis.x) + abs(axis.y)) + 1e-5;
+        if (min(base, third) > h || max(base, third) < -h) return false;
     }
     return true;
 }
@@ -67,7 +74,10 @@ void main() {
     float area_tol = 1e-9 * (dot(e1, e1) + dot(e2, e2));
     if (abs(det) > area_tol) {
         grad = vec2(de1 * e2.y - de2 * e1.y, de2 * e1.x - de1 * e2.x) / det;
-        eta_c = g_eta.x + dot(grad, -a);
+        // From the vertex nearest the texel (far clipped vertices would cancel catastrophically).
+        vec2 vs[3] = vec2[3](a, b, c);
+        int near_i = dot(a, a) <= dot(b, b) ? (dot(a, a) <= dot(c, c) ? 0 : 2) : (dot(b, b) <= dot(c, c) ? 1 : 2);
+        eta_c = g_eta[near_i] + dot(grad, -vs[near_i]);
     }
     // Nearest value of the plane over the texel (the corner the gradient points to), never nearer than
     // the triangle itself reaches (an edge-on triangle: its nearest vertex).
