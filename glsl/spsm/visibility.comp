@@ -5,6 +5,7 @@
 #include "conservative_map/texel.glsl"
 
 uniform usampler2D u_texels;
+uniform sampler2D u_depth_map;      // the hard depth map, for the shadow terminator only
 uniform sampler2D u_slope_table;    // 256 decoded Q codes (§3.4: the decoding look-up table)
 #ifdef SPSM_FLOAT_SLOPES
 uniform sampler2D u_slopes;         // quantiser ablation: unquantised dη/dx, dη/dy
@@ -87,19 +88,19 @@ bool occludes(Tri t, vec2 p, float eta_receiver) {
 // on a vertex of triangle ∩ texel: texel corners inside the triangle, triangle vertices inside the texel,
 // edge/border crossings. Degenerate edges give no crossing; no candidate at all (the quantised vertices
 // miss the texel) falls back to the conservative corner value.
-float consistent_eta(Tri t, ivec2 k) {
+// Returns the position (xy) and η (z) of that nearest point.
+vec3 consistent_depth(Tri t, ivec2 k) {
     vec2 lo = vec2(k), hi = lo + 1.0;
-    float best = -1e30;
-    bool found = false;
+    vec3 best = vec3(0.0, 0.0, -1e30);
     for (int i = 0; i < 4; ++i) {
         vec2 corner = vec2(i % 2 == 0 ? lo.x : hi.x, i < 2 ? lo.y : hi.y);
-        if (inside(t, corner)) { best = max(best, eta_at(t, corner)); found = true; }
+        float e = eta_at(t, corner);
+        if (inside(t, corner) && e > best.z) best = vec3(corner, e);
     }
     for (int i = 0; i < 3; ++i) {
         vec2 a = t.v[i], b = t.v[(i + 1) % 3];
-        if (all(greaterThanEqual(a, lo)) && all(lessThanEqual(a, hi))) {
-            best = max(best, eta_at(t, a)); found = true;
-        }
+        if (all(greaterThanEqual(a, lo)) && all(lessThanEqual(a, hi)) && eta_at(t, a) > best.z)
+            best = vec3(a, eta_at(t, a));
         vec2 d = b - a;
         for (int axis = 0; axis < 2; ++axis) {
             if (abs(d[axis]) < 1e-12) continue;
@@ -109,11 +110,14 @@ float consistent_eta(Tri t, ivec2 k) {
                 if (s < 0.0 || s > 1.0) continue;
                 vec2 x = a + d * s;
                 float o = x[1 - axis];
-                if (o >= lo[1 - axis] && o <= hi[1 - axis]) { best = max(best, eta_at(t, x)); found = true; }
+                if (o >= lo[1 - axis] && o <= hi[1 - axis] && eta_at(t, x) > best.z) best = vec3(x, eta_at(t, x));
             }
         }
     }
-    if (!found) best = eta_at(t, t.centre) + 0.5 * (abs(t.grad.x) + abs(t.grad.y));
+    if (best.z < -1e29) {
+        vec2 corner = t.centre + 0.5 * sign(t.grad);
+        best = vec3(corner, eta_at(t, corner));
+    }
     return best;
 }
 
@@ -191,14 +195,28 @@ void main() {
     float v = 1.0, cls = 0.0;
     if (pixel_lit(px)) {
         Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
-        vec2 p = r.map.xy;
+        // The normal offset keeps its depth, not its sideways shift: at sub-texel precision that shift
+        // (δ·tanθ on the receiver) moves outer shadow edges outwards.
+        vec3 surface = texelFetch(g_position, px, 0).xyz;
+        vec2 p = map_coords(light_local(surface)).xy;
+        vec2 hard_pos = r.map.xy;
+        r.map.xy = p;
         ivec2 k = ivec2(floor(p));
         float eta_front = eta_from_depth(r.map.z - r.bias);     // nearer than this occludes
         float eta_back = eta_from_depth(r.map.z + r.bias);
         Tri tc = fetch_tri(k);
         cls = C_LIT_1;
+        vec3 l_local = light_local(surface);
+        vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l_local);
         if (any(lessThan(k, ivec2(0))) || any(greaterThanEqual(k, u_map_size)) || !tc.valid) {
             v = 1.0;                                        // nothing touches the texel: lit
+        } else if (dot(r.normal, to_light) < 0.0) {
+            // The shadow terminator of a smooth mesh: the shading normal faces the light (it is lit) but
+            // the triangle itself faces away, so its own mesh shadows it geometrically. Cycles lifts such
+            // shadow rays off the flat triangle (its shadow-terminator geometry offset) and HARD's slope
+            // bias hides the same self-shadow; sub-texel tests would not. Here SPSM decides as HARD does,
+            // against the hard depth map.
+            v = map_lit(u_depth_map, ivec2(floor(hard_pos)), r.map.z - r.bias);
         } else {
             float e = eta_at(tc, p);
             if (e >= eta_back && e <= eta_front) {
@@ -219,8 +237,17 @@ void main() {
                     uint ring = 0u;
                     for (int j = 0; j < 9; ++j) {
                         ivec2 kj = j == 0 ? k : k + RING[j - 1];
-                        g_front[j] = g_tri[j].valid &&
-                                     consistent_eta(g_tri[j], kj) > receiver_eta(r, vec2(kj) + 0.5);
+                        // Compared where the triangle is nearest: the receiver's own plane there, so
+                        // that the receiver's surface never counts as in front of itself.
+                        // Algorithm 1's depth rejection at p itself too: a neighbour whose plane runs
+                        // behind p there is the receiver's own surface curving away (a concave receiver),
+                        // not an occluder whose edge was missed.
+                        if (g_tri[j].valid) {
+                            vec3 c = consistent_depth(g_tri[j], kj);
+                            g_front[j] = c.z > receiver_eta(r, c.xy) && eta_at(g_tri[j], p) > eta_front;
+                        } else {
+                            g_front[j] = false;
+                        }
                         if (j > 0 && g_front[j]) ring |= 1u << uint(j - 1);
                     }
                     if (u_recovery == 0) {
