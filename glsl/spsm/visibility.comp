@@ -258,7 +258,11 @@ void main() {
                         vec4 dirs = texelFetch(u_patterns, ivec2(int(ring) | (g_front[0] ? 256 : 0), 0), 0);
                         bool unite = !g_front[0];     // separate occluders: shadows unite
                         if (ring == 0xFFu) {
-                            v = 0.0;                        // an occluder covers the whole neighbourhood
+                            // Occluders in front all around yet none over p: a solid occluder whose
+                            // triangle at p was not kept (the paper's case: shadowed) or a gap in a mesh of
+                            // occluders finer than a texel (the paper's "shadow fusion", §6.4). The hard
+                            // map's sample at p tells them apart as well as anything here can.
+                            v = map_lit(u_depth_map, ivec2(floor(hard_pos)), r.map.z - r.bias);
                         } else if (ring == 0u && !g_front[0]) {
                             v = 1.0;                        // nothing in front anywhere around
                         } else {
