@@ -8,12 +8,18 @@ flat in vec2 g_v0;
 flat in vec2 g_v1;
 flat in vec2 g_v2;
 flat in vec3 g_eta;
+flat in vec2 g_grad;
+flat in uint g_codes;
+flat in mat3 g_edges;
+flat in vec3 g_third;
+flat in int g_fast;
 
 layout(location = 0) out float f_min_depth;     // linear light depth of the minimum conservative depth
 layout(location = 1) out uvec4 f_texel;
 #ifdef CMAP_FLOAT_SLOPES
 layout(location = 2) out vec2 f_slopes;         // ablation only: dη/dx, dη/dy unquantised
 #endif
+
 
 float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
 
@@ -59,22 +65,31 @@ vec2 pull_in(vec2 v, vec2 a, vec2 b) {
     return t0 <= t1 ? other + d * t1 : clamp(v, -VERT_REACH, VERT_REACH);
 }
 
+// The same test with the axes the geometry stage prepared (triangles within a few map sizes).
+bool overlaps_texel_fast(vec2 centre, vec2 a, vec2 b, vec2 c) {
+    vec2 lo = min(a, min(b, c)), hi = max(a, max(b, c));
+    if (any(greaterThan(lo, vec2(0.5))) || any(lessThan(hi, vec2(-0.5)))) return false;
+    for (int i = 0; i < 3; ++i) {
+        vec2 axis = g_edges[i].xy;
+        float at = dot(axis, centre);
+        float base = g_edges[i].z - at, third = g_third[i] - at;
+        float h = 0.5 * (abs(axis.x) + abs(axis.y)) + 1e-4;
+        if (min(base, third) > h || max(base, third) < -h) return false;
+    }
+    return true;
+}
+
 void main() {
     vec2 centre = gl_FragCoord.xy;
     vec2 a = g_v0 - centre, b = g_v1 - centre, c = g_v2 - centre;
-    if (!overlaps_texel(a, b, c)) discard;
+    if (!(g_fast == 1 ? overlaps_texel_fast(centre, a, b, c) : overlaps_texel(a, b, c))) discard;
 
-    // The plane η(x, y) through the three vertices (affine in map space).
-    vec2 e1 = b - a, e2 = c - a;
-    float det = cross2(e1, e2);
-    float de1 = g_eta.y - g_eta.x, de2 = g_eta.z - g_eta.x;
+    // The plane's η at the texel centre, from the vertex nearest the texel (far clipped vertices would
+    // cancel catastrophically); an edge-on triangle (no gradient) counts at its nearest vertex.
+    vec2 grad = g_grad;
     float eta_top = max(g_eta.x, max(g_eta.y, g_eta.z));
-    vec2 grad = vec2(0.0);
     float eta_c = eta_top;
-    float area_tol = 1e-9 * (dot(e1, e1) + dot(e2, e2));
-    if (abs(det) > area_tol) {
-        grad = vec2(de1 * e2.y - de2 * e1.y, de2 * e1.x - de1 * e2.x) / det;
-        // From the vertex nearest the texel (far clipped vertices would cancel catastrophically).
+    if (any(notEqual(grad, vec2(0.0)))) {
         vec2 vs[3] = vec2[3](a, b, c);
         int near_i = dot(a, a) <= dot(b, b) ? (dot(a, a) <= dot(c, c) ? 0 : 2) : (dot(b, b) <= dot(c, c) ? 1 : 2);
         eta_c = g_eta[near_i] + dot(grad, -vs[near_i]);
@@ -86,10 +101,9 @@ void main() {
     f_min_depth = depth_from_eta(clamp(eta_cons, 0.0, 1.0));
 
     float z_c = depth_from_eta(eta_c);
-    vec2 s = -grad / slope_scale(clamp(z_c, u_light_depth_range.x, u_light_depth_range.y));
     vec2 pa = pull_in(a, b, c), pb = pull_in(b, c, a), pc = pull_in(c, a, b);
     f_texel = uvec4(pack_vertex(pa), pack_vertex(pb), pack_vertex(pc),
-                    pack_depth_slopes(z_c, quantise_slope(s.x), quantise_slope(s.y)));
+                    pack_depth_slopes(z_c, g_codes));
 #ifdef CMAP_FLOAT_SLOPES
     f_slopes = grad;
 #endif

@@ -9,8 +9,9 @@
 //
 // Depth that is affine across the map is the nearness η = 1 − window depth (a perspective view: affine
 // in 1/z; an ortho view: linear), 1 at the near plane and 0 at the far one. Eq. 1 extrapolates η.
-// Slopes are quantised as dimensionless slopes s = ∂z/∂(lateral texel width), so that atan(s) is the
-// surface's tilt away from facing the light: dη/dx = −s·J(z), J = −dη/dz × lateral size of one texel.
+// Slopes are quantised as dimensionless slopes s = −(dη/dx)/J, J = −dη/dz × the lateral size of one texel
+// at the reference depth (slope_scale): at that depth atan(s) is the surface's tilt away from facing the
+// light.
 // Include after common/light_view.glsl (u_light_depth_range, u_light_ortho come from there).
 uniform vec2 u_texel_window;        // window units per texel along x and y
 uniform float u_quant_n;            // exponent n of Q: 1 (linear in angle), 3, 5 (the paper's)
@@ -32,11 +33,14 @@ float depth_from_eta(float eta) {
     return n * f / max(eta * (f - n) + n, 1e-30);
 }
 
-// −dη/dz times the lateral size of one texel at depth z, per axis.
-vec2 slope_scale(float z) {
+// −dη/dz times the lateral size of one texel, per axis, at the view's reference depth √(near·far) (any
+// fixed depth decodes exactly; this one keeps atan's useful range over the view's depths). A triangle's
+// dη/dx is constant, so its codes are too: the geometry stage quantises once per triangle.
+vec2 slope_scale() {
     float n = u_light_depth_range.x, f = u_light_depth_range.y;
     if (u_light_ortho == 1) return u_texel_window / (f - n);
-    return n * f * u_texel_window / ((f - n) * max(z, 1e-30));
+    float z_ref = sqrt(n * f);
+    return n * f * u_texel_window / ((f - n) * z_ref);
 }
 
 // Q(d) = 127·(1 + ((2/π)·atan d)^n), the odd power keeping the sign (§3.4, Eq. 3).
@@ -61,7 +65,7 @@ float normalised_depth(float z) {
     return clamp((z - n) / (f - n), 0.0, 1.0);
 }
 
-uint pack_depth_slopes(float z, uint qx, uint qy) {
+uint pack_depth_slopes(float z, uint q_xy) {
     uint zq = uint(round(normalised_depth(z) * 65535.0));
-    return (zq << 16) | (qx << 8) | qy;
+    return (zq << 16) | q_xy;
 }

@@ -57,7 +57,7 @@ Tri fetch_tri(ivec2 k) {
 #else
     vec2 s = vec2(texelFetch(u_slope_table, ivec2(int((w.a >> 8) & 0xFFu), 0), 0).r,
                   texelFetch(u_slope_table, ivec2(int(w.a & 0xFFu), 0), 0).r);
-    t.grad = -s * slope_scale(zc);
+    t.grad = -s * slope_scale();
 #endif
     t.area2 = cross2(t.v[1] - t.v[0], t.v[2] - t.v[0]);
     return t;
