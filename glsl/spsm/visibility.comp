@@ -24,6 +24,8 @@ const float C_SHADOW_9 = 3.0;       // a triangle of the 3×3 neighbourhood occl
 const float C_RECOVERED = 4.0;      // uncertain: silhouette recovery (or its trivial masks) decided
 const float C_UNCERTAIN = 5.0;      // uncertain, recovery off: the centre's consistent depth decided
 
+const float GRAZING_COS = 0.05;     // cos 87°
+
 const ivec2 RING[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
                                ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
 
@@ -210,12 +212,14 @@ void main() {
         vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l_local);
         if (any(lessThan(k, ivec2(0))) || any(greaterThanEqual(k, u_map_size)) || !tc.valid) {
             v = 1.0;                                        // nothing touches the texel: lit
-        } else if (dot(r.normal, to_light) < 0.0) {
+        } else if (dot(r.normal, to_light) < GRAZING_COS) {
             // The shadow terminator of a smooth mesh: the shading normal faces the light (it is lit) but
             // the triangle itself faces away, so its own mesh shadows it geometrically. Cycles lifts such
             // shadow rays off the flat triangle (its shadow-terminator geometry offset) and HARD's slope
             // bias hides the same self-shadow; sub-texel tests would not. Here SPSM decides as HARD does,
-            // against the hard depth map.
+            // against the hard depth map. So are receivers within 3° of edge-on (city's walls at 89.8°):
+            // there one texel spans tens of texel-widths of depth and the sub-texel tests are
+            // ill-conditioned, while HARD's capped slope bias still holds.
             v = map_lit(u_depth_map, ivec2(floor(hard_pos)), r.map.z - r.bias);
         } else {
             float e = eta_at(tc, p);
