@@ -161,11 +161,14 @@ bool hidden(vec2 v, int owner) {
 vec2 g_td[27];
 int g_count;
 
-void collect(vec2 n, vec2 o) {
+// Only the texels on this tangent's occluder side (and the centre) take part: with two tangents, the other
+// occluder's lit-facing vertices would otherwise pull φ across the gap between them (shadow fusion).
+void collect(vec2 n, vec2 o, float side) {
     vec2 tangent = vec2(-n.y, n.x);
     g_count = 0;
     for (int j = 0; j < 9; ++j) {
         if (!g_front[j]) continue;
+        if (j > 0 && dot(vec2(RING[j - 1]), n) <= side) continue;
         for (int i = 0; i < 3; ++i) {
             vec2 v = g_tri[j].v[i];
             if (!faces_lit_side(g_tri[j], i, n) || hidden(v, j)) continue;
@@ -303,7 +306,9 @@ void main() {
                                 vec2 n = dir[d];
                                 if (d == 1 && dot(n, n) < 0.5) break;
                                 vec2 origin = vec2(k) + 0.5 - 2.0 * n;      // on the lit side's corner
-                                collect(n, origin);                          // φ once per tangent
+                                // Beside separate occluders: texels towards this one; across a thin
+                                // one: every texel not behind its line.
+                                collect(n, origin, unite ? 0.3 : -0.3);      // φ once per tangent
                                 vec2 t_axis = vec2(-n.y, n.x);
                                 for (int s = 0; s < samples; ++s) {
                                     // Rotated grid in the pixel; a single sample sits at its centre.
