@@ -301,7 +301,7 @@ def test_spsm_classes_and_options_are_finite():
     assert np.isfinite(r.passes["Visibility"]).all()
 
 
-@pytest.mark.parametrize("name", ["suzanne", "contact"])
+@pytest.mark.parametrize("name", ["suzanne", "contact", "thin"])
 def test_spsm_at_least_as_good_as_hard_against_cycles(name):
     """Built-in scenes with a 1 cm light against Cycles (128², 512² maps): SPSM's pixel_match ≥ HARD's."""
     bpy = pytest.importorskip("bpy")
