@@ -10,19 +10,23 @@ Per pixel (glsl/spsm/visibility.comp):
   2. the same test against the 3×3 neighbourhood: a hit is shadowed (§4.1);
   3. otherwise uncertain: consistent depths (§4.2, Fig. 9) give the 3×3 bitmask of occluders in front; a
      pattern table (`PATTERNS`, below) turns its ring into up to two shadow directions; the boundary
-     vertices of the front triangles, projected on each tangent axis, make the piecewise-linear φ, and the
-     receiver is shadowed where d(p) > φ(t(p)) for any tangent (§4.2, Fig. 10);
+     vertices of the front triangles on that tangent's occluder side (vertices facing the lit side, none
+     strictly inside another front triangle), projected on each tangent axis, make the piecewise-linear φ,
+     and the receiver is shadowed where d(p) > φ(t(p)) (§4.2, Fig. 10; two tangents combine as below);
   4. antialiasing: uncertain pixels evaluate the same φ at `spsm_aa_samples` positions of their
      footprint in the map (§5).
 
-Two departures, both measured against Cycles on suzanne (mismatched pixels at 512/1024/2048²):
+Departures, measured against Cycles (bench --study spsm, 128² images, mismatched pixels):
   * the receiver's normal offset keeps its depth but not its sideways shift in the map, which at sub-texel
     precision moved outer shadow edges outwards (stress-style test scene at 64²: 103 → 59 mismatched);
   * shadow-terminator pixels (shading normal towards the light, the flat triangle away from it) are
     shadowed by their own mesh geometrically; Cycles lifts their shadow rays off the triangle (its
     terminator geometry offset) and lights most of them. SPSM decides those pixels as HARD does, with the
     hard depth map (a second, cheap need): 28/23/16 → 13/10/11 (HARD: 28/23/16; SPSM shadowing them:
-    14/18/23).
+    14/18/23). Receivers within 3° of edge-on (city's walls at 89.8°) are decided the same way: there one
+    texel spans tens of texel-widths of depth (city 4096²: 78 → 21, HARD 32);
+  * a full ring of occluders in front with none over p is the paper's umbra, or a gap in occluders finer
+    than a texel (its "shadow fusion", §6.4): the hard map decides it (thin 512²: 1229 → 903, HARD 813).
 
 The pattern set (the paper's Fig. 8 is not in its text; derived here, `pattern_directions`): the 8 ring
 texels in order E, NE, N, NW, W, SW, S, SE plus the centre's own bit. A corner texel is 4-connected to its
@@ -34,8 +38,8 @@ two edge neighbours, edges only through corners or the centre.
   * Centre in front: one blob through the centre (isolated corners dropped). A lopsided blob (|Σ offsets|
     ≥ half its texel count) is an edge facing that sum; a symmetric one (a line through the centre) is a
     thin occluder along the principal axis of its texels, with both normals, whose shadows intersect.
-  * A full ring is an umbra; no usable pattern (only the centre, only isolated corners) leaves p lit: no
-    neighbour says an occluder reaches past the stored triangles.
+  * A full ring goes to the hard map (above); no usable pattern (only the centre, only isolated corners)
+    leaves p lit: no neighbour says an occluder reaches past the stored triangles.
 """
 from __future__ import annotations
 
