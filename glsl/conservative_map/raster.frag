@@ -21,8 +21,6 @@ layout(location = 2) out vec2 f_slopes;         // ablation only: dη/dx, dη/dy
 #endif
 
 
-float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
-
 // Separating-axis test of a triangle (texel-relative) against the texel box [−½, ½]²: the box's two axes
 // and the three edge normals. Touching counts as overlapping (conservative). A degenerate triangle (a
 // segment or a point) is tested as what it is. Each edge is measured from its endpoint nearer the texel

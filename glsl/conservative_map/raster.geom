@@ -28,8 +28,6 @@ float eta_of(vec4 clip) {
     return 1.0 - (clip.z / clip.w * 0.5 + 0.5);
 }
 
-float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
-
 vec2 t_grad;
 uint t_codes;
 mat3 t_edges;

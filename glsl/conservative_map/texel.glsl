@@ -22,6 +22,8 @@ const float PI_CM = 3.14159265358979;
 const uint Q_MIN = 1u;              // Q away from 0 and 254: tan(±π/2) flips sign in float32
 const uint Q_MAX = 253u;
 
+float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
+
 float eta_from_depth(float z) {
     float n = u_light_depth_range.x, f = u_light_depth_range.y;
     return u_light_ortho == 1 ? (f - z) / (f - n) : n * (f - z) / (z * (f - n));

@@ -38,8 +38,6 @@ struct Tri {
     float area2;    // twice the signed 2D area
 };
 
-float cross2(vec2 a, vec2 b) { return a.x * b.y - a.y * b.x; }
-
 Tri fetch_tri(ivec2 k) {
     Tri t;
     t.valid = false;
