@@ -141,6 +141,7 @@ class SubPixelShadowMaps(Technique):
                "Samples per uncertain pixel along the recovered edge (§5); 1 turns antialiasing off", 1, 32),
     )
     debug_passes = (("SPSM Class", 1, "X", "VALUE"),)   # CLASSES codes
+    coarse = {"spsm_aa_samples": 1}                     # the viewport's first frame: no edge samples
 
     def visibility(self, frame, lc, out):
         s = frame.settings
