@@ -59,22 +59,24 @@ def _explain(error: Exception, files: list[str]) -> str:
 
 
 def program(worker, vertex: str | None = None, fragment: str | None = None, compute: str | None = None,
-            defines: dict | None = None):
-    """A compiled program, cached on the worker for the life of its context."""
-    key = repr((vertex, fragment, compute, sorted((defines or {}).items())))
+            defines: dict | None = None, geometry: str | None = None):
+    """A compiled program, cached on the worker for the life of its context. `geometry` adds a geometry
+    stage between vertex and fragment (conservative rasterization emulates itself there)."""
+    key = repr((vertex, fragment, compute, sorted((defines or {}).items()), geometry))
     cached = worker.cache.get(key)
     if cached is not None:
         return cached
     ctx = worker.ctx
     sources = {}
-    for stage, name in (("vertex", vertex), ("fragment", fragment), ("compute", compute)):
+    for stage, name in (("vertex", vertex), ("geometry", geometry), ("fragment", fragment), ("compute", compute)):
         if name:
             sources[stage] = expand(name, defines)
     try:
         if compute:
             prog = ctx.compute_shader(sources["compute"][0])
         else:
-            prog = ctx.program(vertex_shader=sources["vertex"][0], fragment_shader=sources["fragment"][0])
+            prog = ctx.program(vertex_shader=sources["vertex"][0], fragment_shader=sources["fragment"][0],
+                               geometry_shader=sources["geometry"][0] if geometry else None)
     except Exception as exc:
         stage_files = [files for _, files in sources.values()]
         # Source-string numbers are per stage; try each stage's table and keep the first that maps.
@@ -83,7 +85,7 @@ def program(worker, vertex: str | None = None, fragment: str | None = None, comp
             message = _explain(exc, files)
             if "glsl/" in message:
                 break
-        raise ShaderError(f"GLSL compile failed ({', '.join(n for n in (vertex, fragment, compute) if n)}):\n"
+        raise ShaderError(f"GLSL compile failed ({', '.join(n for n in (vertex, geometry, fragment, compute) if n)}):\n"
                           f"{message}") from None
     worker.cache[key] = prog
     return prog
