@@ -6,10 +6,11 @@ from .pcss import Pcss
 from .averaged import AveragedMaps
 from .backprojection import Backprojection
 from .ssm import SoftShadowMaps
+from .pvsm import Pvsm
 
 TECHNIQUES = CATALOGUE       # the core's catalogue is this registry itself
 TECHNIQUES.update((t.identifier, t) for t in (Hard(), Pcf(), Pcss(), AveragedMaps(), SoftShadowMaps(),
-                                               Backprojection()))
+                                               Backprojection(), Pvsm()))
 
 
 def all_options() -> dict:
