@@ -39,6 +39,8 @@ const float TINY = 1e-4;          // texels: the smallest kernel half extent (a 
 Receiver g_r;
 float g_depth;                    // receiver depth less its bias
 int g_visited;
+vec2 g_light_e;                   // half extent of the light filter alone (texels)
+vec2 g_pad;                       // half extent of the pixel footprint on the map (texels), 0 without AA
 
 // Receiver depth to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
 // point over the cell (its nearest corner), less the bias, so that the receiver never hides a blocker that a
@@ -71,9 +73,12 @@ vec2 filter_half_texels(float zo, float zy) {
 // counts every texel of the box nearer than the receiver; we keep only cells that can hide part of the light,
 // i.e. that reach into the light–receiver pyramid at their own depth (c ± α(z_min)·h): a wall beside the
 // receiver or geometry at the map's edge is then not averaged in. Each cell is weighted by its overlap with
-// that pyramid's section, so the mean, and with it the filter size, moves smoothly. The cell's minimum depth
-// makes the test conservative. Returns (mean depth, blocker weight); weight 0: no blocker.
-vec2 average_blockers(vec2 c, vec2 e) {
+// that pyramid's section (below), so the mean, and with it the filter size, moves smoothly. The cell's minimum
+// depth makes the test conservative. Returns (mean depth, blocker weight); weight 0: no blocker.
+// With anti-aliasing the pixel's footprint (half extent `pad`) widens both, so that a pixel whose footprint
+// reaches a shadow is not skipped as fully lit.
+vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
+    e += pad;
     int l = max(u_search_base, cap_level(max(e.x, e.y), u_search_levels));
     l = min(l, u_search_levels - 1);
     float s = float(1 << l);
@@ -88,10 +93,13 @@ vec2 average_blockers(vec2 c, vec2 e) {
             float zmin = texelFetch(u_search_hsm, ivec2(i, j), l).x;
             if (!(zmin < depth_for_cell(vec2(i, j) * s / u_search_scale, vec2(i + 1, j + 1) * s / u_search_scale)))
                 continue;
-            vec2 reach = min(max(filter_half_texels(zmin, g_depth) * u_search_scale, vec2(0.5)), e);
+            vec2 reach = min(max(filter_half_texels(zmin, g_depth) * u_search_scale, vec2(0.5)) + pad, e);
             vec2 w = min(vec2(i + 1, j + 1) * s, c + reach) - max(vec2(i, j) * s, c - reach);
             if (w.x > 0.0 && w.y > 0.0) {
-                float area = max(w.x * w.y, 1e-12);
+                // Each cell weighs the share of the pyramid's section it fills, i.e. the share of the light it
+                // hides: a layer that hides all of it counts 1 whatever its depth (a plain texel count would
+                // favour blockers near the light, whose sections are wider, and over-blur).
+                float area = max(w.x * w.y / (4.0 * reach.x * reach.y), 1e-12);
                 sum += area * zmin;
                 weight += area;
             }
@@ -224,7 +232,18 @@ float occluded_share(vec2 c, mat2 h, int l) {
                 if (u_outside_lit == 1) continue;
                 t = clamp(t, ivec2(0), u_map_size - 1);
             }
-            if (texelFetch(u_depth_map, t, 0).r < receiver_depth_at(g_r, vec2(t) + 0.5)) occ += w;
+            // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid (c ±
+            // α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and that lies
+            // close to the receiver (α(z) under a quarter of the kernel's) cannot hide the light: it is the
+            // receiver's own curved surface, nearer than its tangent plane far out in a wide kernel. Deeper
+            // occluders of a fused umbra keep counting (their light points are covered by the z-average's
+            // plane, the model of Eq. 1).
+            float z = texelFetch(u_depth_map, t, 0).r;
+            vec2 own = filter_half_texels(z, g_depth);
+            bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
+                && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
+            if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
+                occ += w;
         }
     }
     return total > 0.0 ? clamp(occ / total, 0.0, 1.0) : 0.0;
@@ -240,16 +259,20 @@ void main() {
         vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
         g_r = make_receiver(p, ng);
         g_depth = g_r.map.z - g_r.bias;
+        mat2 phi = mat2(0.0);
+        if (u_aa == 1 || u_rho != 0) phi = pixel_footprint(px, p, ng);
+        vec2 pad = u_aa == 1 ? abs(phi[0]) + abs(phi[1]) : vec2(0.0);
+        g_pad = pad;
         // Search box: the light seen from the receiver through the near plane, capped.
         vec2 search = clamp(filter_half_texels(u_light_depth_range.x, g_depth), vec2(0.5), vec2(u_max_radius));
-        vec2 blockers = average_blockers(g_r.map.xy * u_search_scale, search * u_search_scale);
+        vec2 blockers = average_blockers(g_r.map.xy * u_search_scale, search * u_search_scale,
+                                         pad * u_search_scale);
         info.x = 0.0;
         if (blockers.y > 0.0 || u_skip_lit == 0) {
             vec2 e = blockers.y > 0.0 ? filter_half_texels(blockers.x, g_depth) : vec2(0.0);
             e = min(e, vec2(float(max(u_map_size.x, u_map_size.y))));     // α → ∞ (occluder at the light)
+            g_light_e = e;
             mat2 h = mat2(vec2(e.x, 0.0), vec2(0.0, e.y));
-            mat2 phi = mat2(0.0);
-            if (u_aa == 1 || u_rho != 0) phi = pixel_footprint(px, p, ng);
             if (u_aa == 1) h = convolve(h, phi);
             int l = cap_level(max(abs(h[0].x), h[1].y + abs(h[0].y)), u_filter_levels);
             float n_screen = 0.0;
