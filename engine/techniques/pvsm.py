@@ -2,17 +2,19 @@
 (Eurographics 2011) — PCSS done right. Fixed-resolution mode (the paper's comparison mode, one map, no tiles);
 per pixel, in glsl/pvsm/visibility.comp:
 
-* z-averaging (§4 step 3): PCSS's blocker search on a low-resolution level of the search map's min/max
-  pyramid, each cell weighted by its overlap with the search box; no blocker → fully lit, skipped;
+* z-averaging (§4 step 3): PCSS's blocker search on a low-resolution, min-reduced copy of the search map
+  (and three coarser halvings for wide search boxes), keeping only cells that reach into the light–receiver
+  pyramid at their own depth, each weighted by the share of the light it hides; no blocker → fully lit;
 * the soft filter of Eq. 1, the light's shape scaled by α = (z_y − z_o)·z_n/(z_y·z_o), normalised by the
   kernel's actual area so that α → 0 (contact) and α → ∞ stay finite;
 * smooth convolution (§4.1, Eq. 2): every texel a constant-depth quad weighted by its exact overlap with the
-  kernel; kernels wider than `pvsm_cap` texels read a coarser level of the map's min/max pyramid (a straddling
-  coarse cell counts the share of its depth range in front of the receiver), so a loop visits at most about
-  (cap + 2)² cells; optional irradiance weighting of each texel's light sub-rectangle;
+  kernel; a kernel wider than `pvsm_cap` texels reads every 2^l-th texel (as a map rendered 2^l times
+  coarser would), so one loop visits at most about (cap + 2)² cells; texels of the receiver's own surface
+  (close to it and outside their own light pyramid) are not counted; optional irradiance weighting of each
+  texel's light sub-rectangle;
 * anisotropic anti-aliasing (§4.2, Eq. 3): the pixel's axes through the receiver's tangent plane onto the
   map, convolved with the light filter as Gaussians and brought back to a parallelogram by Cholesky;
-* perceptual resolution (§5.1, Eq. 4–5): the coarsest pyramid level whose texels still give the kernel the
+* perceptual resolution (§5.1, Eq. 4–5): the coarsest such level whose texels still give the kernel the
   ρ(n) texels a viewer needs at its screen size n.
 
 Round lights (disk, ellipse, sphere, sun) use the box of equal variance (half extent √3/2 of the radius).
@@ -27,7 +29,7 @@ import numpy as np
 from ..core import lightview
 from ..core.matrices import mat_uniform
 from ..core.snapshot import SUN
-from .backprojection import build_hsm, is_round, level_count
+from .backprojection import is_round, level_count
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
 
 # The map the blocker search reads. The paper renders it conservatively (§5.2 step 2) so that thin geometry is
@@ -116,9 +118,13 @@ class Pvsm(Technique):
         w, h = view.width, view.height
         search = lc.structures[SEARCH_MAP]
         search_size = (search.width, search.height)
-        with frame.timings.stage("pvsm_pyramid"):
-            search_hsm, search_levels = build_hsm(frame, search, *search_size)
-        search_base = max(0, int(math.ceil(math.log2(max(search_size) / int(o["pvsm_search_size"])))))
+        # The low-resolution search map: min-reduced to about pvsm_search_size, and three levels that halve it
+        # for search boxes wider than the cap (a light near its occluders).
+        fine_block = max(1, 1 << max(0, int(math.ceil(math.log2(max(search_size) / int(o["pvsm_search_size"]))))))
+        with frame.timings.stage("pvsm_search_map"):
+            levels = [self._reduce(frame, search, search_size, fine_block)]
+            for _ in range(3):
+                levels.append(self._reduce(frame, levels[-1], (levels[-1].width, levels[-1].height), 2))
         shape = light_shape_uniforms(light, view)
         half = tuple(float(x) * (ROUND_BOX if is_round(light) else 1.0) for x in shape["u_light_half"])
         cam = frame.snap.camera
@@ -126,11 +132,12 @@ class Pvsm(Technique):
         uniforms = {
             **lc.uniforms, "u_light_half": half,
             "u_search_scale": (search_size[0] / w, search_size[1] / h),
-            "u_search_levels": int(search_levels), "u_search_base": min(search_base, search_levels - 1),
+            "u_fine_block": fine_block,
             "u_filter_levels": level_count(w, h),
-            "u_search_cells": tuple(search_hsm.size), "u_cap": int(o["pvsm_cap"]),
+            "u_cap": int(o["pvsm_cap"]),
             "u_max_radius": float(o["pvsm_search_radius"]) * max(w, h),
-            "u_skip_lit": int(bool(o["pvsm_skip_lit"])), "u_outside_lit": int(casters_inside(view, lc.casters)), "u_aa": int(bool(o["pvsm_antialiasing"])),
+            "u_skip_lit": int(bool(o["pvsm_skip_lit"])), "u_outside_lit": int(casters_inside(view, lc.casters)),
+            "u_aa": int(bool(o["pvsm_antialiasing"])),
             "u_rho": RHO[o["pvsm_resolution"]],
             "u_inv_view_proj": mat_uniform(np.linalg.inv(cam.projection @ cam.view)),
         }
@@ -145,11 +152,21 @@ class Pvsm(Technique):
         frame.progress.check()
         with frame.timings.stage("pvsm_filter"):
             frame.dispatch("pvsm/visibility.comp", uniforms,
-                           samplers={"g_irradiance": lc.irradiance, "u_search_hsm": search_hsm,
+                           samplers={"g_irradiance": lc.irradiance,
+                                     **{f"u_search{i}": t for i, t in enumerate(levels)},
                                      "u_depth_map": lc.structures[FILTER_MAP]},
                            images=images, defines=defines)
         if info is not None:
             self._gather(frame, lc, info)
+
+    @staticmethod
+    def _reduce(frame, src, size, block):
+        """A map `block` times coarser, each texel the minimum depth of its block (glsl/pvsm/reduce.comp)."""
+        out_size = (-(-size[0] // block), -(-size[1] // block))
+        out = frame.texture(out_size, 1)
+        frame.dispatch("pvsm/reduce.comp", {"u_src_size": tuple(size), "u_block": int(block)},
+                       samplers={"u_src": src}, images={0: out}, size=out_size)
+        return out
 
     def _gather(self, frame, lc, info):
         a = frame.read(info)

@@ -16,11 +16,14 @@
 #include "common/form_factor.glsl"
 #endif
 
-uniform sampler2D u_search_hsm;   // min/max pyramid of the blocker-search map (RG32F, mipmapped)
+// The "low-resolution map" of §4 step 3 and three coarser ones, each halving (glsl/pvsm/reduce.comp): every
+// cell the minimum depth of the search-map texels it covers.
+uniform sampler2D u_search0;
+uniform sampler2D u_search1;
+uniform sampler2D u_search2;
+uniform sampler2D u_search3;
+uniform int u_fine_block;         // search-map texels per cell of u_search0
 uniform vec2 u_search_scale;      // search-map texels per filtering-map texel
-uniform ivec2 u_search_cells;    // its level-0 size (power-of-two padded)
-uniform int u_search_levels;
-uniform int u_search_base;        // the "low-resolution map" of §4 step 3: the level the search starts at
 uniform sampler2D u_depth_map;    // the filtering map
 uniform int u_filter_levels;      // levels of its (virtual) pyramid: level l keeps every 2^l-th texel
 uniform int u_cap;                // most texels per axis one kernel loop visits: a coarser level beyond it
@@ -55,6 +58,16 @@ ivec2 level_cells(ivec2 size0, int l) {
     return max(size0 >> l, ivec2(1));
 }
 
+ivec2 search_cells(int l) {
+    return l == 0 ? textureSize(u_search0, 0) : l == 1 ? textureSize(u_search1, 0)
+         : l == 2 ? textureSize(u_search2, 0) : textureSize(u_search3, 0);
+}
+
+float search_min(int l, ivec2 t) {
+    return l == 0 ? texelFetch(u_search0, t, 0).r : l == 1 ? texelFetch(u_search1, t, 0).r
+         : l == 2 ? texelFetch(u_search2, t, 0).r : texelFetch(u_search3, t, 0).r;
+}
+
 // Coarsest level needed so that a kernel of half extent e (level-0 texels) spans at most u_cap cells.
 int cap_level(float e, int levels) {
     float l = ceil(log2(max(2.0 * e / float(u_cap), 1.0)));
@@ -79,18 +92,18 @@ vec2 filter_half_texels(float zo, float zy) {
 // reaches a shadow is not skipped as fully lit.
 vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
     e += pad;
-    int l = max(u_search_base, cap_level(max(e.x, e.y), u_search_levels));
-    l = min(l, u_search_levels - 1);
-    float s = float(1 << l);
-    ivec2 i0 = ivec2(floor((c - e) / s)), i1 = ivec2(floor((c + e) / s));
-    ivec2 cells = level_cells(u_search_cells, l);
-    i0 = max(i0, ivec2(0));
-    i1 = min(i1, cells - 1);
+    // The finest level whose cells the box spans at most u_cap times (the coarsest one past that).
+    int l = 0;
+    while (l < 3 && 2.0 * max(e.x, e.y) > float(u_cap * (u_fine_block << l))) ++l;
+    float s = float(u_fine_block << l);
+    ivec2 cells = search_cells(l);
+    ivec2 i0 = max(ivec2(floor((c - e) / s)), ivec2(0));
+    ivec2 i1 = min(ivec2(floor((c + e) / s)), cells - 1);
     float sum = 0.0, weight = 0.0;
     for (int j = i0.y; j <= i1.y; ++j) {
         for (int i = i0.x; i <= i1.x; ++i) {
             ++g_visited;
-            float zmin = texelFetch(u_search_hsm, ivec2(i, j), l).x;
+            float zmin = search_min(l, ivec2(i, j));
             if (!(zmin < depth_for_cell(vec2(i, j) * s / u_search_scale, vec2(i + 1, j + 1) * s / u_search_scale)))
                 continue;
             vec2 reach = min(max(filter_half_texels(zmin, g_depth) * u_search_scale, vec2(0.5)) + pad, e);
