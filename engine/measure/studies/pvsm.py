@@ -10,7 +10,7 @@ fixed-resolution mode, on scenes whose visibility has a closed form (no Cycles n
            the box-filtered closed form (each pixel the mean of the exact visibility over its footprint on the
            ground, 64×64 points) for the analytic anti-aliasing of §4.2 against screen-space supersampling
            8×8 and 32×32 without it (the paper: as good as 32×32 at ~1/9 of 8×8's time), with times;
-  stages   milliseconds per stage (Table 1's columns that exist here: G-buffer, shadow map, search pyramid,
+  stages   milliseconds per stage (Table 1's columns that exist here: G-buffer, shadow map, search map,
            filtering);
   rho      the finest level under the kernel cap against ρ_dynamic (the cubic), ρ_static and a line in
            log2 n (the paper's Fig. 8 foil), each with its error and time.
@@ -168,7 +168,7 @@ def stages(size, map_size, repeats, log):
     snap = replace(snap, camera=replace(snap.camera, width=size, height=size))
     s = RenderSettings(technique="PVSM", shadow_map_size=map_size)
     r, ms = _render(snap, s, repeats)
-    keep = ("gbuffer", "shadow_map", "pvsm_pyramid", "pvsm_filter", "irradiance", "accumulate")
+    keep = ("gbuffer", "shadow_map", "pvsm_search_map", "pvsm_filter", "irradiance", "accumulate")
     row = {k: float(r.timings.get(k, 0.0)) for k in keep}
     row["frame_ms"] = ms
     log("stages: " + ", ".join(f"{k} {v:.1f}" for k, v in row.items()))
