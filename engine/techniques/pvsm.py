@@ -102,7 +102,8 @@ class Pvsm(Technique):
                       ("LINEAR", "Linear", "A line in log2 n through ρ dynamic's end points (the paper's foil)"))),
         Option("pvsm_weighting", "IRRADIANCE", "Texel weights", "How a texel's share of the filter counts",
                items=(("IRRADIANCE", "Irradiance", "Each texel's light sub-rectangle weighted by the irradiance "
-                       "it carries to the receiver (parallel-rectangle form factor): what Cycles measures"),
+                       "it carries to a receiver facing the light (cosines over squared distance at its centre): "
+                       "what Cycles measures"),
                       ("UNIFORM", "Uniform (paper)", "Plain area share of the texel, as in the paper"))),
     )
     coarse = {"pvsm_cap": 8}

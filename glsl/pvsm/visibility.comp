@@ -7,13 +7,10 @@
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #ifndef WEIGHTED
-#define WEIGHTED 0      // 1: each texel's share weighted by the irradiance of its light sub-rectangle
+#define WEIGHTED 0      // 1: each texel's share weighted by the irradiance its light sub-rectangle carries
 #endif
 #ifndef INFO
 #define INFO 0          // 1: write the debug/statistics image
-#endif
-#if WEIGHTED
-#include "common/form_factor.glsl"
 #endif
 
 // The "low-resolution map" of §4 step 3 and three coarser ones, each halving (glsl/pvsm/reduce.comp): every
@@ -232,7 +229,13 @@ float occluded_share(vec2 c, mat2 h, int l) {
 #if WEIGHTED
             if (u_light_ortho == 0) {
                 vec4 r = (vec4(xa, max(float(j) * s, ya), xb, min(float(j + 1) * s, yb)) - c.xyxy) * to_light.xyxy;
-                w = max(ff_rect((r - foot.xyxy) / zr), 0.0);
+                // Midpoint rule: the cell's area times the irradiance density at its centre, cosθ_r·cosθ_l/d²
+                // for a receiver facing the light = 1/(1 + |q|²)² with q its offset in units of the height.
+                // Against the exact parallel-rectangle form factor (as SSM's ssm/patch.glsl integrates it)
+                // it gave the same mae_shadow on plane and suzanne at 0.7× the filter's time.
+                vec2 q = (0.5 * (r.xy + r.zw) - foot) / zr;
+                float k = 1.0 / (1.0 + dot(q, q));
+                w *= k * k;
             }
 #endif
             total += w;

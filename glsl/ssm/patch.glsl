@@ -35,9 +35,19 @@ bool depth_valid(float z) {
 }
 
 #if SSM_WEIGHTED
-// Irradiance weighting (our addition; the paper counts the plain area): the form factor of a parallel
-// rectangle, shared with PVSM.
-#include "common/form_factor.glsl"
+// Irradiance weighting (our addition; the paper counts the plain area). The share of the light's irradiance
+// that a rectangle of the light plane carries to a receiver facing the light, at height zr over its foot
+// point: the form factor of a parallel rectangle, F(corner a, b) = a/√(1+a²)·atan(b/√(1+a²)) + b/√(1+b²)·
+// atan(a/√(1+b²)) with a, b in units of zr (the differential-area-to-parallel-rectangle form factor, up to a
+// constant), odd in each argument, so any rectangle is four signed corners.
+float ff_corner(float a, float b) {
+    float ra = inversesqrt(1.0 + a * a), rb = inversesqrt(1.0 + b * b);
+    return a * ra * atan(b * ra) + b * rb * atan(a * rb);
+}
+
+float ff_rect(vec4 r) {          // x0, y0, x1, y1
+    return ff_corner(r.z, r.w) - ff_corner(r.x, r.w) - ff_corner(r.z, r.y) + ff_corner(r.x, r.y);
+}
 
 // Hidden share of the light's irradiance at a receiver at window position t, depth zr, for the overlap `ab`
 // (normalised light coordinates [0, 1]²). Perspective views only (a sun's directions are all equal).
