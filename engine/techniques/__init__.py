@@ -7,10 +7,11 @@ from .averaged import AveragedMaps
 from .backprojection import Backprojection
 from .ssm import SoftShadowMaps
 from .spsm import SubPixelShadowMaps
+from .pvsm import Pvsm
 
 TECHNIQUES = CATALOGUE       # the core's catalogue is this registry itself
 TECHNIQUES.update((t.identifier, t) for t in (Hard(), Pcf(), Pcss(), AveragedMaps(), SoftShadowMaps(),
-                                               Backprojection(), SubPixelShadowMaps()))
+                                               Backprojection(), SubPixelShadowMaps(), Pvsm()))
 
 
 def all_options() -> dict:

@@ -1,0 +1,305 @@
+// PVSM, fixed-resolution mode: Shen, Guennebaud, Yang & Feng, "Predicted Virtual Soft Shadow Maps with High
+// Quality Filtering" (2011), §4 (PCSS revisited), §4.1 (smooth convolution), §4.2 (anisotropic anti-aliasing)
+// and §5.1 (perceptual resolution, here choosing the level of one map's min/max pyramid instead of a tile).
+//
+// Units: map positions are level-0 texels of the filtering map; window coordinates are tangents at unit depth
+// (perspective) or metres (a sun's ortho view), as in common/light_view.glsl.
+#include "common/pixel.glsl"
+#include "common/light_view.glsl"
+#ifndef WEIGHTED
+#define WEIGHTED 0      // 1: each texel's share weighted by the irradiance its light sub-rectangle carries
+#endif
+#ifndef INFO
+#define INFO 0          // 1: write the debug/statistics image
+#endif
+
+// The "low-resolution map" of §4 step 3 and three coarser ones, each halving (glsl/pvsm/reduce.comp): every
+// cell the minimum depth of the search-map texels it covers.
+uniform sampler2D u_search0;
+uniform sampler2D u_search1;
+uniform sampler2D u_search2;
+uniform sampler2D u_search3;
+uniform int u_fine_block;         // search-map texels per cell of u_search0
+uniform vec2 u_search_scale;      // search-map texels per filtering-map texel
+uniform sampler2D u_depth_map;    // the filtering map
+uniform int u_filter_levels;      // levels of its (virtual) pyramid: level l keeps every 2^l-th texel
+uniform int u_cap;                // most texels per axis one kernel loop visits: a coarser level beyond it
+uniform vec2 u_light_half;        // light half extent (the equal-variance box of a round light)
+uniform float u_max_radius;       // cap on the search half extent, level-0 texels
+uniform int u_skip_lit;
+uniform int u_outside_lit;        // 1: every caster lies inside the map, so past its edge nothing occludes
+uniform int u_aa;
+uniform int u_rho;                // 0: finest level under the cap; 1: ρ_dynamic; 2: ρ_static; 3: linear in log2 n
+uniform mat4 u_inv_view_proj;     // camera clip → world
+layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
+layout(rgba32f, binding = 1) uniform writeonly image2D u_info;   // class, level, screen size n, texels visited
+
+const float TINY = 1e-4;          // texels: the smallest kernel half extent (a hard test of one texel)
+
+Receiver g_r;
+float g_depth;                    // receiver depth less its bias
+int g_visited;
+vec2 g_light_e;                   // half extent of the light filter alone (texels)
+vec2 g_pad;                       // half extent of the pixel footprint on the map (texels), 0 without AA
+
+// Receiver depth to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
+// point over the cell (its nearest corner), less the bias, so that the receiver never hides a blocker that a
+// finer level would see there.
+float depth_for_cell(vec2 lo, vec2 hi) {
+    return min(min(receiver_depth_at(g_r, lo), receiver_depth_at(g_r, hi)),
+               min(receiver_depth_at(g_r, vec2(lo.x, hi.y)), receiver_depth_at(g_r, vec2(hi.x, lo.y))));
+}
+
+// Cells of level l of a pyramid (llvmpipe's textureSize(sampler, lod) answers level 0's size here).
+ivec2 level_cells(ivec2 size0, int l) {
+    return max(size0 >> l, ivec2(1));
+}
+
+ivec2 search_cells(int l) {
+    return l == 0 ? textureSize(u_search0, 0) : l == 1 ? textureSize(u_search1, 0)
+         : l == 2 ? textureSize(u_search2, 0) : textureSize(u_search3, 0);
+}
+
+float search_min(int l, ivec2 t) {
+    return l == 0 ? texelFetch(u_search0, t, 0).r : l == 1 ? texelFetch(u_search1, t, 0).r
+         : l == 2 ? texelFetch(u_search2, t, 0).r : texelFetch(u_search3, t, 0).r;
+}
+
+// Coarsest level needed so that a kernel of half extent e (level-0 texels) spans at most u_cap cells.
+int cap_level(float e, int levels) {
+    float l = ceil(log2(max(2.0 * e / float(u_cap), 1.0)));
+    return clamp(int(l), 0, levels - 1);
+}
+
+// Eq. 1's α as a half extent in texels of the light filter: h·(1/z_o − 1/z_y) tangents (perspective; the
+// paper's (z_y − z_o)·z_n/(z_y·z_o) at the map plane z_n) or tan(angle/2)·(z_y − z_o) metres (sun).
+vec2 filter_half_texels(float zo, float zy) {
+    float spread = u_light_ortho == 1 ? max(zy - zo, 0.0) : max(1.0 / max(zo, 1e-30) - 1.0 / zy, 0.0);
+    return u_light_half * spread / u_texel_tan;
+}
+
+// ---- §4 step 3: z-averaging over the low-resolution map --------------------------------------------------
+// Mean depth of the blockers around c (search-map texels) within the search box c ± e. The paper (like PCSS)
+// counts every texel of the box nearer than the receiver; we keep only cells that can hide part of the light,
+// i.e. that reach into the light–receiver pyramid at their own depth (c ± α(z_min)·h): a wall beside the
+// receiver or geometry at the map's edge is then not averaged in. Each cell is weighted by its overlap with
+// that pyramid's section (below), so the mean, and with it the filter size, moves smoothly. The cell's minimum
+// depth makes the test conservative. Returns (mean depth, blocker weight); weight 0: no blocker.
+// With anti-aliasing the pixel's footprint (half extent `pad`) widens both, so that a pixel whose footprint
+// reaches a shadow is not skipped as fully lit.
+vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
+    e += pad;
+    // The finest level whose cells the box spans at most u_cap times (the coarsest one past that).
+    int l = 0;
+    while (l < 3 && 2.0 * max(e.x, e.y) > float(u_cap * (u_fine_block << l))) ++l;
+    float s = float(u_fine_block << l);
+    ivec2 cells = search_cells(l);
+    ivec2 i0 = max(ivec2(floor((c - e) / s)), ivec2(0));
+    ivec2 i1 = min(ivec2(floor((c + e) / s)), cells - 1);
+    float sum = 0.0, weight = 0.0;
+    for (int j = i0.y; j <= i1.y; ++j) {
+        for (int i = i0.x; i <= i1.x; ++i) {
+            ++g_visited;
+            float zmin = search_min(l, ivec2(i, j));
+            if (!(zmin < depth_for_cell(vec2(i, j) * s / u_search_scale, vec2(i + 1, j + 1) * s / u_search_scale)))
+                continue;
+            vec2 reach = min(max(filter_half_texels(zmin, g_depth) * u_search_scale, vec2(0.5)) + pad, e);
+            vec2 w = min(vec2(i + 1, j + 1) * s, c + reach) - max(vec2(i, j) * s, c - reach);
+            if (w.x > 0.0 && w.y > 0.0) {
+                // Each cell weighs the share of the pyramid's section it fills, i.e. the share of the light it
+                // hides: a layer that hides all of it counts 1 whatever its depth (a plain texel count would
+                // favour blockers near the light, whose sections are wider, and over-blur).
+                float area = max(w.x * w.y / (4.0 * reach.x * reach.y), 1e-12);
+                sum += area * zmin;
+                weight += area;
+            }
+        }
+    }
+    return vec2(weight > 0.0 ? sum / weight : 0.0, weight);
+}
+
+// ---- §4.2: pixel footprint -----------------------------------------------------------------------------
+// Where the camera ray through NDC point `ndc` meets the receiver's tangent plane (p, n), in map texels.
+// Near-parallel rays are held at 80 × the pixel's own distance so the axis stays finite.
+vec2 footprint_point(vec2 ndc, vec3 p, vec3 n, out bool ok) {
+    vec4 a = u_inv_view_proj * vec4(ndc, -1.0, 1.0), b = u_inv_view_proj * vec4(ndc, 1.0, 1.0);
+    vec3 o = a.xyz / a.w, dir = b.xyz / b.w - o;
+    float len = length(dir);
+    dir /= max(len, 1e-30);
+    float den = dot(dir, n);
+    float reach = 80.0 * length(p - o);
+    float t = abs(den) > 1e-6 ? dot(p - o, n) / den : reach;
+    ok = t > 0.0 && t < reach && abs(den) > 1e-6;
+    t = clamp(t, 0.0, reach);
+    return map_coords(light_local(o + dir * t)).xy;
+}
+
+// The pixel's half axes (u_φ, v_φ) in map texels, through the receiver's tangent plane (Fig. 5).
+mat2 pixel_footprint(ivec2 px, vec3 p, vec3 n) {
+    vec2 ndc = (vec2(px) + 0.5) / vec2(u_image_size) * 2.0 - 1.0;
+    vec2 d = 1.0 / vec2(u_image_size);          // half a pixel in NDC
+    bool ok0, ok1, ok2, ok3;
+    vec2 ux = footprint_point(ndc + vec2(d.x, 0.0), p, n, ok0) - footprint_point(ndc - vec2(d.x, 0.0), p, n, ok1);
+    vec2 vy = footprint_point(ndc + vec2(0.0, d.y), p, n, ok2) - footprint_point(ndc - vec2(0.0, d.y), p, n, ok3);
+    mat2 m = mat2(0.5 * ux, 0.5 * vy);
+    // A grazing axis can reach far across the map: bound each to a quarter of the map.
+    float cap = 0.25 * float(max(u_map_size.x, u_map_size.y));
+    for (int k = 0; k < 2; ++k) {
+        float l = length(m[k]);
+        if (!(l <= 1e30)) m[k] = vec2(0.0);         // NaN or Inf
+        else if (l > cap) m[k] *= cap / l;
+    }
+    return m;
+}
+
+// Appendix `convolve`: the Gaussian of variance Σ M Mᵀ of two parallelograms, brought back by Cholesky to a
+// parallelogram whose second axis is the map's vertical (columns of L). The appendix's "u2.y" is u_out.y.
+// Guards: m00 = 0 (no horizontal extent) and a negative radicand (rounding) keep a TINY extent.
+mat2 convolve(mat2 a, mat2 b) {
+    float m00 = a[0].x * a[0].x + a[1].x * a[1].x + b[0].x * b[0].x + b[1].x * b[1].x;
+    float m10 = a[0].x * a[0].y + a[1].x * a[1].y + b[0].x * b[0].y + b[1].x * b[1].y;
+    float m11 = a[0].y * a[0].y + a[1].y * a[1].y + b[0].y * b[0].y + b[1].y * b[1].y;
+    vec2 u, v;
+    u.x = sqrt(max(m00, TINY * TINY));
+    u.y = m00 > TINY * TINY ? m10 / u.x : 0.0;
+    v = vec2(0.0, sqrt(max(m11 - u.y * u.y, TINY * TINY)));
+    return mat2(u, v);
+}
+
+// ---- §5.1: perceptual resolution --------------------------------------------------------------------------
+// ρ(n): texels a filter must span to look right at n pixels on screen, fitted in x = log2 n over the study's
+// power-of-two sizes; x is held to [0, 9] (1 … 512 pixels) outside of which the cubics were not fitted.
+float rho(float n) {
+    float x = clamp(log2(max(n, 1e-6)), 0.0, 9.0);
+    if (u_rho == 2) {       // ρ_static, held at its maximum (x ≈ 7.64) past which the cubic turns down
+        x = min(x, 7.6375);
+        return 0.5477 + x * (1.406 + x * (-0.04687 - 0.003944 * x));
+    }
+    float p0 = 0.667, p9 = 0.667 + 9.0 * (0.7794 + 9.0 * (0.3967 - 0.02716 * 9.0));
+    if (u_rho == 3) return p0 + (p9 - p0) * x / 9.0;      // linear in log2 n through ρ_dynamic's end points
+    return 0.667 + x * (0.7794 + x * (0.3967 - 0.02716 * x));                       // ρ_dynamic
+}
+
+// Eq. 4–5: the kernel's screen sizes n0, n1 along the map axes and the texel size r = 2·extent/ρ(n) they
+// need; the level is the coarsest whose texels (2^l) are no larger than r. -1 when the footprint is singular.
+int perceptual_level(mat2 phi, mat2 h, out float n_screen) {
+    float det = determinant(phi);
+    n_screen = 0.0;
+    if (!(abs(det) > 1e-12)) return -1;
+    mat2 inv = inverse(phi);
+    float n0 = length(inv * vec2(h[0].x, 0.0)), n1 = length(inv * h[1]);
+    n_screen = max(n0, n1);
+    float r0 = 2.0 * abs(h[0].x) / rho(n0), r1 = 2.0 * abs(h[1].y) / rho(n1);
+    float r = min(r0, r1);
+    return r >= 1.0 ? int(floor(log2(r))) : 0;
+}
+
+// ---- §4.1: smooth convolution (Eq. 2) ---------------------------------------------------------------------
+// Occluded share of the semi-axis-aligned parallelogram c + s·u + t·v, |s|, |t| ≤ 1 (v vertical), at level
+// l: each cell a constant-depth quad weighted by its overlap with the kernel, every one-cell column of the
+// kernel taken as an axis-aligned box (the paper's vertical panels). Normalised by the kernel's actual
+// area (Σ weights), so any size stays finite.
+float occluded_share(vec2 c, mat2 h, int l) {
+    vec2 u = h[0], v = h[1];
+    float s = float(1 << l);
+    ivec2 cells = level_cells(u_map_size, l);
+    float hx = max(abs(u.x), TINY), hy = max(v.y, TINY);
+    float slope = abs(u.x) > TINY ? u.y / u.x : 0.0;
+    int i0 = int(floor((c.x - hx) / s)), i1 = int(floor((c.x + hx) / s));
+#if WEIGHTED
+    // Kernel coordinates → light plane: the kernel's bounding box is the light (exact without AA, where the
+    // kernel is the light seen through the blocker plane; stretched over the pixel footprint with AA).
+    vec2 box = vec2(hx, hy + abs(u.y));
+    vec2 to_light = u_light_half / box;
+    float zr = max(g_r.map.z, 1e-30);
+    vec2 foot = g_r.local.xy;
+#endif
+    float occ = 0.0, total = 0.0;
+    for (int i = i0; i <= i1; ++i) {
+        float xa = max(float(i) * s, c.x - hx), xb = min(float(i + 1) * s, c.x + hx);
+        float wx = xb - xa;
+        if (!(wx > 0.0)) continue;
+        float yc = c.y + slope * (0.5 * (xa + xb) - c.x);
+        float ya = yc - hy, yb = yc + hy;
+        int j0 = int(floor(ya / s)), j1 = int(floor(yb / s));
+        for (int j = j0; j <= j1; ++j) {
+            float wy = min(float(j + 1) * s, yb) - max(float(j) * s, ya);
+            if (!(wy > 0.0)) continue;
+            float w = wx * wy;
+#if WEIGHTED
+            if (u_light_ortho == 0) {
+                vec4 r = (vec4(xa, max(float(j) * s, ya), xb, min(float(j + 1) * s, yb)) - c.xyxy) * to_light.xyxy;
+                // Midpoint rule: the cell's area times the irradiance density at its centre, cosθ_r·cosθ_l/d²
+                // for a receiver facing the light = 1/(1 + |q|²)² with q its offset in units of the height.
+                // Against the exact parallel-rectangle form factor (as SSM's ssm/patch.glsl integrates it)
+                // it gave the same mae_shadow on plane and suzanne at 0.7× the filter's time.
+                vec2 q = (0.5 * (r.xy + r.zw) - foot) / zr;
+                float k = 1.0 / (1.0 + dot(q, q));
+                w *= k * k;
+            }
+#endif
+            total += w;
+            ++g_visited;
+            // A cell of level l is the level-0 texel at its centre, as a map rendered 2^l times coarser
+            // would sample it. Past the map's edge: lit when every caster lies inside the map, else the
+            // edge texel continued outwards (compared where it lies, so a surface never shadows itself).
+            ivec2 t = ivec2((vec2(i, j) + 0.5) * s);
+            if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) {
+                if (u_outside_lit == 1) continue;
+                t = clamp(t, ivec2(0), u_map_size - 1);
+            }
+            // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid (c ±
+            // α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and that lies
+            // close to the receiver (α(z) under a quarter of the kernel's) cannot hide the light: it is the
+            // receiver's own curved surface, nearer than its tangent plane far out in a wide kernel. Deeper
+            // occluders of a fused umbra keep counting (their light points are covered by the z-average's
+            // plane, the model of Eq. 1).
+            float z = texelFetch(u_depth_map, t, 0).r;
+            vec2 own = filter_half_texels(z, g_depth);
+            bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
+                && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
+            if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
+                occ += w;
+        }
+    }
+    return total > 0.0 ? clamp(occ / total, 0.0, 1.0) : 0.0;
+}
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (!pixel_in_image(px)) return;
+    float v = 1.0;
+    vec4 info = vec4(-1.0, 0.0, 0.0, 0.0);
+    g_visited = 0;
+    if (pixel_lit(px)) {
+        vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
+        g_r = make_receiver(p, ng);
+        g_depth = g_r.map.z - g_r.bias;
+        mat2 phi = mat2(0.0);
+        if (u_aa == 1 || u_rho != 0) phi = pixel_footprint(px, p, ng);
+        vec2 pad = u_aa == 1 ? abs(phi[0]) + abs(phi[1]) : vec2(0.0);
+        g_pad = pad;
+        // Search box: the light seen from the receiver through the near plane, capped.
+        vec2 search = clamp(filter_half_texels(u_light_depth_range.x, g_depth), vec2(0.5), vec2(u_max_radius));
+        vec2 blockers = average_blockers(g_r.map.xy * u_search_scale, search * u_search_scale,
+                                         pad * u_search_scale);
+        info.x = 0.0;
+        if (blockers.y > 0.0 || u_skip_lit == 0) {
+            vec2 e = blockers.y > 0.0 ? filter_half_texels(blockers.x, g_depth) : vec2(0.0);
+            e = min(e, vec2(float(max(u_map_size.x, u_map_size.y))));     // α → ∞ (occluder at the light)
+            g_light_e = e;
+            mat2 h = mat2(vec2(e.x, 0.0), vec2(0.0, e.y));
+            if (u_aa == 1) h = convolve(h, phi);
+            int l = cap_level(max(abs(h[0].x), h[1].y + abs(h[0].y)), u_filter_levels);
+            float n_screen = 0.0;
+            if (u_rho != 0) l = max(l, min(perceptual_level(phi, h, n_screen), u_filter_levels - 1));
+            v = 1.0 - occluded_share(g_r.map.xy, h, l);
+            info = vec4(blockers.y > 0.0 ? 2.0 : 0.0, float(l), n_screen, 0.0);
+        }
+        info.w = float(g_visited);
+    }
+    imageStore(u_visibility, px, vec4(v));
+#if INFO
+    imageStore(u_info, px, info);
+#endif
+}
