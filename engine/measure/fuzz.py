@@ -461,7 +461,7 @@ HEADER = (f"{'seed':>6} {'scene':<46} {'technique':<14} {'mae_shadow (pixels)':<
 def run(seed: int, n: int, techniques=None, *, resolution=RESOLUTION, samples: int = CYCLES_SAMPLES,
         overrides: dict | None = None, out_dir: str | None = None, on_row=None, on_progress=None) -> list[Row]:
     """Scenes seed .. seed+n-1 × techniques (default all). `on_row(row)` after each, `on_progress(f, text)`."""
-    from ..techniques import TECHNIQUES
+    from ..render.pipeline import TECHNIQUES
     techniques = list(techniques or TECHNIQUES)
     rows = []
     for i in range(n):
