@@ -181,6 +181,15 @@ CASES = {
                                               spot_size=math.radians(80), spot_blend=0.5),
                                  dict(rotation=(0.2, 0.0, 0.0), scale=(1.4, 1.0, 1.0))),
     "sun_angle": ("SUN", dict(angle=math.radians(40), energy=3.0), dict(rotation=(0.5, 0.2, 0.0))),
+    # Issue 10 item 5: extreme lights.
+    "area_ellipse_tiny_nonuniform": ("AREA", dict(shape="ELLIPSE", size=1e-3, size_y=2e-3, energy=100.0),
+                                     dict(rotation=(0.3, 0.0, 0.2), scale=(0.7, 0.5, 1.3))),
+    "point_tiny_radius": ("POINT", dict(shadow_soft_size=1e-4, energy=100.0), {}),
+    "sun_3rad": ("SUN", dict(angle=3.0, energy=3.0), dict(rotation=(0.5, 0.2, 0.0))),
+    "sun_180": ("SUN", dict(angle=math.pi, energy=3.0), dict(rotation=(0.9, 0.2, 0.0))),
+    "spot_nonuniform_scale": ("SPOT", dict(shadow_soft_size=0.05, energy=150.0, spot_size=math.radians(100),
+                                           spot_blend=0.3),
+                              dict(rotation=(0.3, -0.2, 0.0), scale=(2.0, 0.5, 0.7))),
 }
 
 

@@ -19,6 +19,7 @@ from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 
 LIGHT_POLYGON, LIGHT_SPHERE, LIGHT_POINT, LIGHT_SUN = 0, 1, 2, 3
 ELLIPSE_SIDES = 64
+SUN_MAX_HALF = 0.5 * np.pi - 1e-4     # widest half angle a sun's disk of directions is drawn with
 
 
 def light_defines(light: Light) -> dict:
@@ -52,7 +53,9 @@ def _light_values(light: Light) -> dict:
     elif light.kind == SUN:
         half = light.angle / 2.0
         if half > 1e-6:
-            u.update(u_shape=LIGHT_SUN, u_radius=float(np.tan(half)),
+            # A disk of directions of radius tan(half) at unit distance; at 180° (half = π/2) it is the whole
+            # hemisphere, capped at tan = 1e4 (the cone then misses 1e-8 of it) so it stays finite.
+            u.update(u_shape=LIGHT_SUN, u_radius=float(np.tan(min(half, SUN_MAX_HALF))),
                      u_radiance=tuple(color / (np.pi * np.sin(half) ** 2)))
         else:
             u.update(u_shape=LIGHT_SUN, u_radius=0.0, u_radiance=tuple(color))
