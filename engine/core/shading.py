@@ -63,12 +63,9 @@ def _light_values(light: Light) -> dict:
         u.update(u_shape=LIGHT_SPHERE, u_radius=float(light.radius),
                  u_radiance=tuple(color / (4.0 * np.pi ** 2 * light.radius ** 2)))
     else:
-        # A point light, a zero-radius spot, or a zero-size area light treated as a point.
-        scale = 1.0 / (4.0 * np.pi)
+        # A point light or a zero-radius spot; a zero-size area light emits nothing, as in Cycles.
+        scale = 0.0 if light.kind == AREA else 1.0 / (4.0 * np.pi)
         u.update(u_shape=LIGHT_POINT, u_radiance=tuple(color * scale))
-        if light.kind == AREA:
-            # A vanishing area light still emits only forwards, with a cosine lobe: I(θ) = P/π · cosθ.
-            u.update(u_one_sided=1, u_radiance=tuple(color / np.pi))
     if light.kind == SPOT:
         cos_half = float(np.cos(light.spot_size / 2.0))
         scale = np.asarray(light.spot_scale, float)

@@ -247,6 +247,10 @@ def build(params: dict, resolution=RESOLUTION):
         ob = bpy.data.objects.new(o["name"], me)
         scene.collection.objects.link(ob)
         ob.location, ob.rotation_euler, ob.scale = o["location"], o["rotation"], o["scale"]
+        if o["transform"] == "flattened":
+            # Its shadow is what is compared: the object itself is two coincident layers facing opposite
+            # ways, and which one a camera ray meets is a coin flip in Cycles (lit, or shadowed by the other).
+            ob.visible_camera = False
     if params["floor"]:
         f = params["floor"]
         ground = scenes._add_ground(scene, f["half_size"], grey)

@@ -62,7 +62,8 @@ def light_shape_uniforms(light: Light, view: LightView) -> dict:
         round_ = light.shape in (DISK, ELLIPSE)
     elif light.kind == SUN:
         import math
-        t = math.tan(light.angle / 2.0)
+        from ..core.shading import SUN_MAX_HALF
+        t = math.tan(min(light.angle / 2.0, SUN_MAX_HALF))      # finite up to a 180° sun
         half, round_ = (t, t), True
     else:
         half, round_ = (light.radius, light.radius), True
