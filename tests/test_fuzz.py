@@ -69,12 +69,16 @@ def test_generator_covers_every_primitive_light_and_transform():
 # ----------------------------------------------------------------------------------------------------------
 
 # Fixed seeds for the default run: cheap scenes (one or two lights, a few objects, ~3-5 s each with both
-# Cycles seeds at 64²) that differ in what they test. Seed 3: three objects (a tiny plane, a cone, a flattened
-# sphere) under a 2.8 m rectangle; 19: orthographic camera, square light + sharp sun; 0: torus, monkey and a
-# squashed sphere under a small ellipse; 15: a mirrored torus under two spots (a 0.17 m sphere, a point).
-FIXED_SEEDS = (0, 3, 15, 19)
+# Cycles seeds at 64²) that differ in what they test. 0: torus, monkey and a squashed sphere under a small
+# ellipse; 15: a mirrored torus under two spots (a 0.17 m sphere, a point); 19: orthographic camera, square
+# light and a sharp sun; 9: five objects (mirrored, non-uniform, tiny) lit from 18° above the floor by a 0.5 m
+# rectangle, a known failure.
+FIXED_SEEDS = (0, 9, 15, 19)
 # (technique, seed) pairs that fail today for a known reason: strict, so the test turns red once fixed.
-KNOWN_FAILURES: dict = {}
+_SELF_SHADOW = ("self-shadowing of the lit curved objects (grazing receivers / terminator class, being fixed "
+                "by another engineer): the error sits on the objects (0.15 without the floor) and halves with "
+                "bias 4")
+KNOWN_FAILURES: dict = {("REFERENCE", 9): _SELF_SHADOW, ("PCSS", 9): _SELF_SHADOW, ("SSM", 9): _SELF_SHADOW}
 
 
 @pytest.fixture(scope="module")

@@ -285,17 +285,27 @@ def build(params: dict, resolution=RESOLUTION):
 # scoring against Cycles
 # ----------------------------------------------------------------------------------------------------------
 
-# Bounds on mae_shadow, per technique: `floor` is the scene's own Cycles noise floor (mae_shadow between the
-# reference and a second Cycles seed, metrics.compare over both masks), so a noisy scene gets a looser bound.
-# bound = BOUND_FLOOR_FACTOR · floor + BOUND_ABS[technique]. How they were chosen: see the table's comments.
+# Bounds on mae_shadow, per technique: bound = floor + BOUND_ABS[technique] + EDGE_PIXELS / n_shadow, where
+# `floor` is the scene's own Cycles noise (mae_shadow between the reference and a second Cycles seed over both
+# masks), so a noisy scene gets a looser bound. BOUND_ABS was read off the measured distribution of
+# mae_shadow − floor − EDGE_PIXELS / n_shadow over seeds 0–48 (64², 256 spp, default settings, after the
+# issue-10 fixes; `python -m penumbra fuzz --seed 0 --n 49`):
+#   REFERENCE       converges to Cycles: the bulk of the scenes lies at 0.008 (median) up to 0.020, then a
+#                   gap to 0.028 (a 37 m light) and the failures (0.053 and up: grazing receivers, terminator
+#                   self-shadowing, lights whose receivers do not fit one view). 0.03 sits in that gap.
+#   the others      approximations, with no such gap: their bound is the 90th percentile of the same
+#                   quantity over the scenes REFERENCE gets right (≥ 50 shadow pixels; 31–32 scenes), rounded
+#                   up to 0.01: PCSS 0.144, SSM 0.136, BACKPROJECTION 0.208, PCF 0.218, HARD 0.232 (HARD and PCF ignore the
+#                   light's size, so a large light exceeds any bound they could be given). By construction
+#                   about one scene in ten that is handled right exceeds it: read the class and the picture.
 BOUND_FLOOR_FACTOR = 1.0
 BOUND_ABS = {
     "REFERENCE": 0.03,
-    "PCSS": 0.10,
-    "PCF": 0.20,
-    "HARD": 0.20,
-    "BACKPROJECTION": 0.08,
-    "SSM": 0.10,
+    "PCSS": 0.15,
+    "SSM": 0.14,
+    "BACKPROJECTION": 0.21,
+    "PCF": 0.22,
+    "HARD": 0.24,
 }
 BOUND_ABS_DEFAULT = 0.10
 # Unshadowed light: mean relative error against Cycles' unshadowed render. Its bound is the scene's own
@@ -304,9 +314,16 @@ BOUND_ABS_DEFAULT = 0.10
 UNSHADOWED_ABS = 0.02
 
 
-def bound(technique: str, floor: float) -> float:
+# A shadow edge that lands a pixel off (a texel of the map, a sub-pixel offset of a silhouette) flips whole
+# pixels: EDGE_PIXELS fully wrong pixels are allowed on top, which only matters where the shadow covers few
+# pixels (+0.4 at 5 pixels, +0.002 at 1000).
+EDGE_PIXELS = 2
+
+
+def bound(technique: str, floor: float, n_shadow: int = 0) -> float:
     floor = floor if math.isfinite(floor) else 0.0
-    return BOUND_FLOOR_FACTOR * floor + BOUND_ABS.get(technique, BOUND_ABS_DEFAULT)
+    edge = EDGE_PIXELS / n_shadow if n_shadow > 0 else 0.0
+    return BOUND_FLOOR_FACTOR * floor + BOUND_ABS.get(technique, BOUND_ABS_DEFAULT) + edge
 
 
 @dataclass
@@ -401,6 +418,7 @@ def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = 
             continue
         v = result.passes["Visibility"][..., 0]
         m = compare(v, cyc.ref.visibility, cyc.ref.mask)
+        b = bound(technique, floor, m["n_shadow"])
         u = unshadowed_error(result.passes["Irradiance"] / np.pi, cyc.ref.unshadowed, cyc.ref.mask)
         mae = m["mae_shadow"] if m["n_shadow"] else 0.0     # no shadow on either side: nothing to miss
         status = "ok"
