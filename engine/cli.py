@@ -268,6 +268,25 @@ def cmd_stress(args) -> int:
     return status
 
 
+def cmd_fuzz(args) -> int:
+    _import_bpy()
+    from .measure import fuzz
+    print(fuzz.HEADER, flush=True)
+    bar = ProgressBar("fuzz")
+    try:
+        rows = fuzz.run(args.seed, args.n, args.technique, resolution=tuple(args.resolution),
+                        samples=args.cycles_samples, overrides=parse_overrides(args.set), out_dir=args.out,
+                        on_row=lambda row: print(fuzz.format_row(row), flush=True), on_progress=bar)
+    finally:
+        bar.close()
+    print(fuzz.summary(rows))
+    failed = [r for r in rows if r.status != "ok"]
+    if failed and args.out:
+        print(f"saved {len({r.seed for r in failed})} scene(s) over their bound in {args.out}/"
+              "<seed>.blend with <seed>_<technique>.{json,png}")
+    return 1 if failed else 0
+
+
 def cmd_scenes(args) -> int:
     from .measure.scenes import list_scenes
     for name, description in list_scenes():
@@ -481,6 +500,18 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--set", action="append", metavar="NAME=VALUE", help="render setting, repeatable")
     st.add_argument("--list", action="store_true", help="list the cases and their expected failures, then exit")
     st.set_defaults(func=cmd_stress)
+
+    from .techniques import TECHNIQUES
+    fz = sub.add_parser("fuzz", help="random scenes × techniques against Cycles; saves every scene over its bound")
+    fz.add_argument("--seed", type=int, default=0, help="first scene seed")
+    fz.add_argument("--n", type=int, default=10, help="number of scenes (seeds seed … seed+n-1)")
+    fz.add_argument("--technique", action="append", type=str.upper, choices=list(TECHNIQUES),
+                    help="technique(s), repeatable (default: all)")
+    fz.add_argument("--out", help="folder for <seed>.blend, <seed>_<technique>.json and .png of each failure")
+    fz.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"), default=[64, 64])
+    fz.add_argument("--cycles-samples", type=int, default=256, help="Cycles samples of the reference")
+    fz.add_argument("--set", action="append", metavar="NAME=VALUE", help="render setting, repeatable")
+    fz.set_defaults(func=cmd_fuzz)
 
     s = sub.add_parser("scenes", help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)

@@ -132,6 +132,30 @@ def test_smooth_shading_normals(scn):
     assert np.allclose(s.normals[:, 0], geo, atol=1e-4)
 
 
+def test_flattened_object_normals_come_from_its_triangles(scn):
+    """A scale axis at 0 (issue 10 item 4): the cofactor sends each smooth normal to ±(that axis) by the sign
+    of its component along it, so neighbouring corners disagree. The normals are the flattened triangles'
+    own, unit length, also for an instance (batched path). Cycles' shadow of such an object:
+    tests/test_fuzz.py::test_flattened_caster_shadows_as_in_cycles."""
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=16, ring_count=8, radius=1.0, location=(0, 0, 1))
+    bpy.ops.object.shade_smooth()
+    ob = bpy.context.active_object
+    ob.rotation_euler, ob.scale = (0.4, 0.2, 0.0), (0.8, 0.0, 0.8)
+    src_col = bpy.data.collections.new("Src")
+    src_col.objects.link(add_mesh(scn, "Tri", [(0, 0, 0), (1, 0, 0), (0, 1, 1)], [(0, 1, 2)],
+                                  collection=None))
+    for i, loc in enumerate([(5, 0, 0), (0, 7, 1)]):
+        e = bpy.data.objects.new(f"Inst{i}", None)
+        e.instance_type, e.instance_collection, e.location, e.scale = "COLLECTION", src_col, loc, (1, 1, 0)
+        scn.collection.objects.link(e)
+    s = snap()
+    assert s.triangle_count > 0
+    geo = face_normals(s.positions.astype(np.float64))
+    for c in range(3):
+        assert np.allclose(s.normals[:, c], geo, atol=1e-5)
+    assert np.allclose(np.linalg.norm(s.normals, axis=-1), 1.0, atol=1e-5)
+
+
 def test_collection_instances(scn):
     src_col = bpy.data.collections.new("Src")
     add_mesh(scn, "Tri", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)], collection=src_col)
@@ -465,8 +489,8 @@ def test_light_temperature_normalize_and_zero_size(scn):
     assert np.allclose(L["Warm"].color, expected)
     assert L["Warm"].color[0] > L["Warm"].color[2]          # warm white is reddish
     assert np.isclose(L["Raw"].power, 5.0 * 4.0)            # un-normalised: energy × area
-    assert L["Zero"].is_delta
-    assert "area light 'Zero' has zero size: rendered as a point light (hard shadow)" in s.warnings
+    assert L["Zero"].is_delta and L["Zero"].power == 0.0     # Cycles renders no light from it
+    assert "area light 'Zero' has zero size: Cycles renders no light from it, and neither does Penumbra" in s.warnings
 
 
 def test_no_lights_is_not_an_extraction_error(scn):

@@ -181,6 +181,16 @@ CASES = {
                                               spot_size=math.radians(80), spot_blend=0.5),
                                  dict(rotation=(0.2, 0.0, 0.0), scale=(1.4, 1.0, 1.0))),
     "sun_angle": ("SUN", dict(angle=math.radians(40), energy=3.0), dict(rotation=(0.5, 0.2, 0.0))),
+    # Issue 10 item 5: extreme lights.
+    "area_ellipse_tiny_nonuniform": ("AREA", dict(shape="ELLIPSE", size=1e-3, size_y=2e-3, energy=100.0),
+                                     dict(rotation=(0.3, 0.0, 0.2), scale=(0.7, 0.5, 1.3))),
+    "point_tiny_radius": ("POINT", dict(shadow_soft_size=1e-4, energy=100.0), {}),
+    "sun_3rad": ("SUN", dict(angle=3.0, energy=3.0), dict(rotation=(0.5, 0.2, 0.0))),
+    "sun_180": ("SUN", dict(angle=math.pi, energy=3.0), dict(rotation=(0.9, 0.2, 0.0))),
+    "point_zero_scale": ("POINT", dict(shadow_soft_size=0.2, energy=100.0), dict(scale=(0.0, 0.0, 0.0))),
+    "spot_nonuniform_scale": ("SPOT", dict(shadow_soft_size=0.05, energy=150.0, spot_size=math.radians(100),
+                                           spot_blend=0.3),
+                              dict(rotation=(0.3, -0.2, 0.0), scale=(2.0, 0.5, 0.7))),
 }
 
 
@@ -229,6 +239,31 @@ def test_irradiance_matches_cycles(case):
     rel_gpu = np.abs(lum_img[lit] - gpu.mean(-1)[lit]) / lum_img[lit]
     print(f"{case}: GPU Unshadowed mean rel err {rel_gpu.mean():.4f}")
     assert rel_gpu.mean() < 0.02, f"{case}: GPU Unshadowed mean relative error {rel_gpu.mean():.4f}"
+
+
+# Lights Cycles renders no light from (measured: its image is exactly black), with the warning extraction gives.
+DARK_CASES = {
+    "area_zero_size": ("AREA", dict(shape="SQUARE", size=0.0, energy=100.0), {}, "has zero size"),
+    "area_zero_x_scale": ("AREA", dict(shape="RECTANGLE", size=1.0, size_y=0.5, energy=100.0),
+                          dict(scale=(0.0, 1.0, 1.0)), "has zero size"),
+    "area_zero_z_scale": ("AREA", dict(shape="SQUARE", size=1.0, energy=100.0), dict(scale=(1.0, 1.0, 0.0)),
+                          "zero Z scale"),
+    "sun_zero_z_scale": ("SUN", dict(angle=0.3, energy=3.0), dict(rotation=(0.5, 0.2, 0.0), scale=(1.0, 1.0, 0.0)),
+                         "zero Z scale"),
+}
+
+
+@pytest.mark.parametrize("case", list(DARK_CASES))
+def test_lights_cycles_renders_dark_render_dark(case):
+    kind, light_props, obj_props, warning = DARK_CASES[case]
+    scene, cam, planes, lob = _build_scene(kind, light_props, obj_props)
+    scene.cycles.samples = 16          # black is black at any sample count
+    img = _render_combined(scene)
+    assert img.max() == 0.0, f"{case}: Cycles now renders light ({img.max()}): revisit extract.make_light"
+    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+    assert any(warning in w and "Cycles renders no light" in w for w in snap.warnings), snap.warnings
+    result = pipeline.render(snap, RenderSettings(technique="HARD"))
+    assert np.all(result.passes["Unshadowed"] == 0.0) and np.all(result.passes["Combined"][..., :3] == 0.0)
 
 
 def test_irradiance_edge_cases_finite():

@@ -35,6 +35,14 @@ LIGHTS = {
                          spot_blend=0.5, spot_scale=np.array([1.4, 1.0, 1.0])),
     "sun": Light("L", SUN, _matrix(), COLOR, 3.0),
     "sun_angle": Light("L", SUN, _matrix(), COLOR, 3.0, angle=np.radians(30)),
+    # Issue 10 item 5: lights far smaller than their distance (the edge sum's cancellation made these 6–70×
+    # too bright in float32 and 20 % off in float64) and suns up to 180° (a disk of radius tan β breaks down).
+    "square_tiny": Light("L", AREA, _matrix(), COLOR, 120.0, SQUARE, 1e-4, 1e-4),
+    "ellipse_tiny": Light("L", AREA, _matrix(), COLOR, 120.0, ELLIPSE, 1e-3, 6e-4),
+    "sphere_tiny": Light("L", POINT, _matrix(), COLOR, 300.0, radius=1e-4),
+    "sun_tiny": Light("L", SUN, _matrix(), COLOR, 3.0, angle=1e-4),
+    "sun_3rad": Light("L", SUN, _matrix(), COLOR, 3.0, angle=3.0),
+    "sun_180": Light("L", SUN, _matrix(), COLOR, 3.0, angle=np.pi),
 }
 
 
@@ -48,6 +56,8 @@ def receivers(seed=0, n=4000):
 
 @pytest.mark.parametrize("name", list(LIGHTS))
 def test_shader_irradiance_matches_numpy(name):
+    """Also the numpy side's own small-light and wide-sun limits, which have closed forms: a tiny light is a
+    point (E = L·A·cosθ·cosθ_light/d²), a 180° sun is the hemisphere around its axis (E = S·(1 + cosθ)/2)."""
     light = LIGHTS[name]
     pts, nrm = receivers()
     ours = GpuWorker.get().submit(irradiance_at, light, pts, nrm).result()
@@ -61,3 +71,18 @@ def test_shader_irradiance_matches_numpy(name):
     assert rel.mean() < 0.005, rel.mean()
     assert np.percentile(rel, 99) < 0.05
     assert np.all(lum[~lit] <= 2e-3 * lum_ref.max())
+
+
+def test_small_lights_and_wide_suns_have_their_closed_forms():
+    pts, nrm = receivers(1, 2000)
+    sq = LIGHTS["square_tiny"]
+    to = sq.position - pts
+    d2 = np.einsum("ij,ij->i", to, to)
+    w = to / np.sqrt(d2)[:, None]
+    front = (pts - sq.position) @ sq.matrix[:3, 2] < 0
+    point = (sq.power / (np.pi * sq.area)) * sq.area * np.maximum(np.einsum("ij,ij->i", nrm, w), 0) \
+        * np.abs(w @ sq.direction) / d2 * front
+    assert np.allclose(irradiance.irradiance(sq, pts, nrm)[:, 0] / COLOR[0], point, rtol=1e-4, atol=0)
+    sun = LIGHTS["sun_180"]
+    hemisphere = sun.power * (1.0 + nrm @ sun.matrix[:3, 2]) / 2.0
+    assert np.allclose(irradiance.irradiance(sun, pts, nrm)[:, 0] / COLOR[0], hemisphere, rtol=1e-9, atol=1e-12)

@@ -12,7 +12,10 @@ Behaviour that mirrors Cycles (intern/cycles/blender/light.cpp, scene/light.cpp)
   * light colour is `color * temperature_color` when `use_temperature` is on (Blender's own blackbody
     value, read from RNA), power is `energy * 2**exposure`;
   * a light with "Normalize" off is folded into `power` by multiplying with its emitting area, which is
-    what Cycles effectively does (it skips the 1/area factor), so `power` keeps meaning watts.
+    what Cycles effectively does (it skips the 1/area factor), so `power` keeps meaning watts;
+  * lights Cycles renders no light from get power 0 and a warning (measured: tests/test_irradiance_cycles.py):
+    a zero-size area light (size or X/Y object scale 0), an area light or a sun with a zero Z scale (no
+    emission direction). A point or spot light with zero scale still shines, as in Cycles.
 """
 from __future__ import annotations
 
@@ -156,6 +159,27 @@ def transform_instances(arrays: _MeshArrays, matrices: np.ndarray):
     det = np.einsum("ki,ki->k", a, cof[:, :, 0])
     flipped = det < 0
     cof[flipped] *= -1.0
+    # A scale axis at 0 (a flattened object): the cofactor maps every normal onto ±(the flattening axis) by
+    # the sign of its component there, so a smooth surface's corners point up and down at random and whole
+    # triangles average to nothing. Such instances take the normal of the flattened triangle itself.
+    scale3 = np.prod(np.linalg.norm(rot, axis=1) + 1e-30, axis=1)   # |det| ≤ product of the row norms
+    singular = np.abs(det) <= 1e-6 * scale3
+    if singular.any():
+        pos = np.matmul(arrays.pos.reshape(1, t * 3, 3), rot.transpose(0, 2, 1))
+        pos += matrices[:, None, :3, 3].astype(np.float32)
+        pos = pos.reshape(k, t, 3, 3)
+        nrm = np.matmul(arrays.nrm.reshape(1, t * 3, 3), cof.transpose(0, 2, 1)).reshape(k, t, 3, 3)
+        face = np.cross(pos[singular, :, 1] - pos[singular, :, 0], pos[singular, :, 2] - pos[singular, :, 0])
+        length = np.linalg.norm(face, axis=-1, keepdims=True)
+        face = np.divide(face, length, out=np.zeros_like(face), where=length > 0)
+        nrm[singular] = face[:, :, None, :]         # zero where the triangle itself collapsed (dropped later)
+        rest = ~singular
+        if rest.any():
+            n = nrm[rest].reshape(-1, 3)
+            ln = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
+            np.divide(n, ln, out=n, where=ln > 0)
+            nrm[rest] = n.reshape(-1, t, 3, 3)
+        return _flip(pos, nrm, flipped) + (flipped,)
     # Row vectors: p'^T = p^T R^T + T, n'^T ∝ n^T cof^T.
     if k == 1:
         r, tr = rot[0], matrices[0, :3, 3].astype(np.float32)
@@ -278,7 +302,12 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
         out.size_x = float(light.size * scale[0])
         out.size_y = float(size_y * scale[1])
         if out.size_x <= 0.0 or out.size_y <= 0.0:
-            warn(f"area light '{name}' has zero size: rendered as a point light (hard shadow)")
+            warn(f"area light '{name}' has zero size: Cycles renders no light from it, and neither does Penumbra")
+            out.power = 0.0
+        elif scale[2] <= 0.0:
+            warn(f"area light '{name}' has a zero Z scale (no emission direction): Cycles renders no light "
+                 "from it, and neither does Penumbra")
+            out.power = 0.0
         out.texture = light_texture(light, warn)
         if out.texture is not None:
             mean = out.texture.reshape(-1, 3).mean(axis=0)
@@ -297,6 +326,10 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
                 warn(f"spot light '{name}' has a square cone: rendered with a round cone")
     elif kind == SUN:
         out.angle = float(light.angle)
+        if scale[2] <= 0.0:
+            warn(f"sun '{name}' has a zero Z scale (no direction): Cycles renders no light from it, and neither "
+                 "does Penumbra")
+            out.power = 0.0
     if not normalize:
         # Cycles divides by the emitting area only when Normalize is on; fold the difference into power.
         if kind == AREA:

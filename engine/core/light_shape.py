@@ -36,6 +36,7 @@ def light_half_extent(light: Light, face=None) -> tuple[float, float]:
         projected = np.max(np.abs(corners @ np.asarray(face, float).T)[:, :2], axis=0)
         return tuple(float(v) for v in np.maximum(projected, 0.05 * max(half)))
     if light.kind == SUN:
-        t = math.tan(light.angle / 2.0)
+        from .shading import SUN_MAX_HALF
+        t = math.tan(min(light.angle / 2.0, SUN_MAX_HALF))      # finite up to a 180° sun
         return (t, t)
     return (light.radius, light.radius)

@@ -274,10 +274,16 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
         axis = int(np.argmin(size))
         if size[axis] <= 1e-6 * max(float(size.max()), 1e-30):
             plane = (lo[axis] + hi[axis]) / 2.0
+            # The side of the plane the light is on; 0 when the light (a wide sun's cone of directions, or
+            # the extent of a large light) reaches across the plane, which can then shadow either side.
             if light.kind == SUN:
                 light_side = -np.sign(light.direction[axis])
+                if abs(light.direction[axis]) <= np.sin(min(light.angle / 2.0, np.pi / 2)):
+                    light_side = 0.0
             else:
                 light_side = np.sign(light.position[axis] - plane)
+                if abs(light.position[axis] - plane) <= _light_extent(light):
+                    light_side = 0.0
             tol = 1e-6 * max(float(np.abs(r_corners).max()), 1.0)
             if light_side != 0 and np.all((r_corners[:, axis] - plane) * light_side >= -tol):
                 continue
@@ -285,6 +291,13 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
     if not keep:
         return None
     return object_bounds[keep, 0].min(axis=0), object_bounds[keep, 1].max(axis=0)
+
+
+def _light_extent(light: Light) -> float:
+    """Farthest distance of any point of the light from its centre."""
+    if light.kind == AREA:
+        return 0.5 * float(np.hypot(light.size_x, light.size_y))
+    return float(light.radius)
 
 
 def _map_shape(window, size: int) -> tuple[int, int]:

@@ -19,6 +19,7 @@ from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 
 LIGHT_POLYGON, LIGHT_SPHERE, LIGHT_POINT, LIGHT_SUN = 0, 1, 2, 3
 ELLIPSE_SIDES = 64
+SUN_MAX_HALF = 0.5 * np.pi - 1e-4     # widest half angle a sun's disk of directions is drawn with
 
 
 def light_defines(light: Light) -> dict:
@@ -52,7 +53,9 @@ def _light_values(light: Light) -> dict:
     elif light.kind == SUN:
         half = light.angle / 2.0
         if half > 1e-6:
-            u.update(u_shape=LIGHT_SUN, u_radius=float(np.tan(half)),
+            # A disk of directions of radius tan(half) at unit distance; at 180° (half = π/2) it is the whole
+            # hemisphere, capped at tan = 1e4 (the cone then misses 1e-8 of it) so it stays finite.
+            u.update(u_shape=LIGHT_SUN, u_radius=float(np.tan(min(half, SUN_MAX_HALF))),
                      u_radiance=tuple(color / (np.pi * np.sin(half) ** 2)))
         else:
             u.update(u_shape=LIGHT_SUN, u_radius=0.0, u_radiance=tuple(color))
@@ -60,12 +63,9 @@ def _light_values(light: Light) -> dict:
         u.update(u_shape=LIGHT_SPHERE, u_radius=float(light.radius),
                  u_radiance=tuple(color / (4.0 * np.pi ** 2 * light.radius ** 2)))
     else:
-        # A point light, a zero-radius spot, or a zero-size area light treated as a point.
-        scale = 1.0 / (4.0 * np.pi)
+        # A point light or a zero-radius spot; a zero-size area light emits nothing, as in Cycles.
+        scale = 0.0 if light.kind == AREA else 1.0 / (4.0 * np.pi)
         u.update(u_shape=LIGHT_POINT, u_radiance=tuple(color * scale))
-        if light.kind == AREA:
-            # A vanishing area light still emits only forwards, with a cosine lobe: I(θ) = P/π · cosθ.
-            u.update(u_one_sided=1, u_radiance=tuple(color / np.pi))
     if light.kind == SPOT:
         cos_half = float(np.cos(light.spot_size / 2.0))
         scale = np.asarray(light.spot_scale, float)

@@ -4,7 +4,7 @@ against (e.g. Atty et al. §4.1). Penumbra's own ground truth is Cycles (engine/
 
 Sample points: an R2 low-discrepancy set over the square, mapped to the disk by Shirley & Chiu's concentric
 map for round lights. Sphere lights are sampled over their great disk facing the receivers (the view's XY
-plane); suns over the disk of directions. Each map's view keeps the light's axes and is refitted from the
+plane); suns uniformly over their cone of directions, each weighted by the receiver's cosine. Each map's view keeps the light's axes and is refitted from the
 sample point.
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import lightview
-from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE
+from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE, WEIGHT_SUN
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN, Light
 from .base import MAP_SIZE_SWEEP, Option, Technique
 
@@ -45,7 +45,13 @@ def light_samples(light: Light, n: int, seed: int = 0) -> np.ndarray:
     if light.kind == AREA:
         return q * np.array([light.size_x / 2.0, light.size_y / 2.0])
     if light.kind == SUN:
-        return q * np.tan(light.angle / 2.0)
+        # Uniform over the cone's solid angle, as Cycles samples a sun (the disk's area maps to 1 − cosθ),
+        # returned as tan θ along the sample's azimuth: uniform in tan θ would crowd the rim of a wide sun.
+        r = np.linalg.norm(q, axis=1)
+        cos_t = np.maximum(1.0 - r * r * (1.0 - np.cos(min(light.angle / 2.0, np.pi / 2))), 1e-4)
+        tan_t = np.sqrt(1.0 - cos_t * cos_t) / cos_t
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.nan_to_num(q / r[:, None]) * tan_t[:, None]
     return q * light.radius
 
 
@@ -84,13 +90,15 @@ class AveragedMaps(Technique):
         sums = frame.texture((frame.width, frame.height), 4)
         sums.write(np.zeros((frame.height, frame.width, 4), np.float32).tobytes())
         weight_mode = WEIGHT_NONE
-        if s.option("averaged_weighted") and light.kind != SUN:
-            weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SPHERE
+        if s.option("averaged_weighted"):
+            weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
         for i, offset in enumerate(offsets):
             frame.progress.check()
+            emit = light.direction
             if light.kind == SUN:
-                view = lightview.fit(tilted_sun(light, offset), lc.receivers, lc.casters, s.shadow_map_size)
-                sample_world = light.position
+                tilted = tilted_sun(light, offset)
+                view = lightview.fit(tilted, lc.receivers, lc.casters, s.shadow_map_size)
+                sample_world, emit = light.position, tilted.direction
             else:
                 local = np.array([offset[0], offset[1], 0.0])
                 # A cube face keeps its turn: every sample's map looks the way the face looks.
@@ -102,7 +110,7 @@ class AveragedMaps(Technique):
             with frame.timings.stage("visibility"):
                 frame.dispatch("averaged/accumulate.comp", {
                     **frame.bias_uniforms, **view.uniforms(), "u_sample_position": tuple(sample_world),
-                    "u_emit_dir": tuple(light.direction), "u_weight_mode": weight_mode},
+                    "u_emit_dir": tuple(emit), "u_weight_mode": weight_mode},
                     samplers={"g_irradiance": lc.irradiance, "u_depth_map": depth}, images={0: sums})
             frame.progress.step((i + 1) / len(offsets), f"{light.name}: sample {i + 1}/{len(offsets)}")
         frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})

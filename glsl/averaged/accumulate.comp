@@ -7,8 +7,8 @@
 
 uniform sampler2D u_depth_map;
 uniform vec3 u_sample_position;   // world position of the sample (perspective views)
-uniform vec3 u_emit_dir;          // light's emission axis (world)
-uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine)
+uniform vec3 u_emit_dir;          // light's emission axis (world); a sun's: this sample's direction
+uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine), WEIGHT_SUN
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
 
 void main() {
@@ -18,7 +18,10 @@ void main() {
     Receiver r = make_receiver(p, texelFetch(g_geometric, px, 0).xyz);
     float v = map_lit(u_depth_map, ivec2(floor(r.map.xy)), r.map.z - r.bias);
     float w = 1.0;
-    if (u_weight_mode != WEIGHT_NONE) {
+    if (u_weight_mode == WEIGHT_SUN) {
+        // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts
+        w = max(dot(texelFetch(g_normal, px, 0).xyz, -u_emit_dir), 0.0);
+    } else if (u_weight_mode != WEIGHT_NONE) {
         vec3 to_sample = u_sample_position - p;
         float d2 = max(dot(to_sample, to_sample), 1e-30);   // m²: a receiver on the sample point
         vec3 dir = to_sample * inversesqrt(d2);

@@ -1,0 +1,186 @@
+"""The differential test against Cycles on random scenes (engine/measure/fuzz.py, issue 10).
+
+Cheap: the generator is deterministic per seed and covers every primitive, transform, light type and shape over
+a seed range (no rendering). Default run: a few fixed seeds, every technique against Cycles at 64², and the
+issue's flattened-caster and wide-sun cases. `-m slow`: a 200-scene sweep per technique.
+"""
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from penumbra.engine.measure import fuzz  # noqa: E402
+from penumbra.engine.render.pipeline import TECHNIQUES  # noqa: E402
+
+COVERAGE_SEEDS = range(200)
+
+
+def test_generator_is_deterministic_per_seed():
+    for seed in (0, 7, 123):
+        assert fuzz.scene_params(seed) == fuzz.scene_params(seed)
+        assert fuzz.describe(fuzz.scene_params(seed)) == fuzz.describe(fuzz.scene_params(seed))
+    assert fuzz.scene_params(1) != fuzz.scene_params(2)
+
+
+def test_build_is_deterministic():
+    def state(seed):
+        scene = fuzz.build(fuzz.scene_params(seed), (32, 32))
+        obs = {ob.name: (ob.type, tuple(round(v, 9) for row in ob.matrix_world for v in row),
+                         len(ob.data.polygons) if ob.type == "MESH" else None) for ob in scene.objects}
+        return obs, scene.camera.data.type
+    for seed in (3, 41):
+        assert state(seed) == state(seed)
+
+
+def test_generator_covers_every_primitive_light_and_transform():
+    params = [fuzz.scene_params(s) for s in COVERAGE_SEEDS]
+    objects = [o for p in params for o in p["objects"]]
+    lights = [light for p in params for light in p["lights"]]
+    assert {o["primitive"] for o in objects} >= set(fuzz.PRIMITIVES)
+    assert {o["transform"] for o in objects} >= {"plain", "nonuniform", "mirrored", "flattened", "tiny", "huge"}
+    assert any(min(o["scale"]) < 0 for o in objects) and any(0.0 in o["scale"] for o in objects)
+    assert {light["type"] for light in lights} == set(fuzz.LIGHT_TYPES)
+    areas = [light for light in lights if light["type"] == "AREA"]
+    assert {light["shape"] for light in areas} == set(fuzz.AREA_SHAPES)
+    sizes = [light["size"] for light in areas if light["size"] > 0]
+    assert min(sizes) < 1e-3 and max(sizes) > 10.0 and any(light["size"] == 0 for light in areas)
+    spheres = [light for light in lights if light["type"] in ("POINT", "SPOT")]
+    assert any(light["radius"] == 0 for light in spheres) and any(light["radius"] > 1.0 for light in spheres)
+    spots = [light for light in lights if light["type"] == "SPOT"]
+    assert min(s["spot_size"] for s in spots) < 0.5 and max(s["spot_size"] for s in spots) > 3.0
+    assert any(s["spot_blend"] == 0 for s in spots) and any(0 < s["spot_blend"] < 1 for s in spots)
+    suns = [light["angle"] for light in lights if light["type"] == "SUN"]
+    assert 0.0 in suns and math.pi in suns and any(2.5 < a < math.pi for a in suns)
+    assert {light["scale_kind"] for light in lights} == {"one", "uniform", "nonuniform", "mirrored", "zero"}
+    counts = {len(p["lights"]) for p in params}
+    assert counts == {0, 1, 2, 3, 4}
+    cams = [p["camera"] for p in params]
+    assert any(c["ortho"] for c in cams) and any(c["inside"] for c in cams) and any(not c["ortho"] for c in cams)
+    assert any(p["floor"] is None for p in params) and any(p["floor"] and p["floor"]["rotation"][0] for p in params)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# against Cycles
+# ----------------------------------------------------------------------------------------------------------
+
+# Fixed seeds for the default run: cheap scenes (one or two lights, a few objects, ~3-5 s each with both
+# Cycles seeds at 64²) that differ in what they test. 0: torus, monkey and a squashed sphere under a small
+# ellipse; 15: a mirrored torus under two spots (a 0.17 m sphere, a point); 19: orthographic camera, square
+# light and a sharp sun; 9: five objects (mirrored, non-uniform, tiny) lit from 18° above the floor by a 0.5 m
+# rectangle, a known failure.
+FIXED_SEEDS = (0, 9, 15, 19)
+# (technique, seed) pairs that fail today for a known reason: strict, so the test turns red once fixed.
+_SELF_SHADOW = ("self-shadowing of the lit curved objects (grazing receivers / terminator class, being fixed "
+                "by another engineer): the error sits on the objects (0.15 without the floor) and halves with "
+                "bias 4")
+KNOWN_FAILURES: dict = {("REFERENCE", 9): _SELF_SHADOW, ("PCSS", 9): _SELF_SHADOW, ("SSM", 9): _SELF_SHADOW}
+
+
+@pytest.fixture(scope="module")
+def fixed_rows():
+    return {seed: {r.technique: r for r in fuzz.score_scene(seed, list(TECHNIQUES))} for seed in FIXED_SEEDS}
+
+
+def _params():
+    out = []
+    for seed in FIXED_SEEDS:
+        for technique in TECHNIQUES:
+            reason = KNOWN_FAILURES.get((technique, seed))
+            marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
+            out.append(pytest.param(seed, technique, marks=marks, id=f"{seed}-{technique}"))
+    return out
+
+
+@pytest.mark.parametrize("seed,technique", _params())
+def test_fixed_scene_within_bound(fixed_rows, seed, technique):
+    r = fixed_rows[seed][technique]
+    assert r.status == "ok", fuzz.format_row(r)
+
+
+def _one_object_scene(primitive, scale, rotation, light, location=(0.0, 0.0, 1.0), transform="flattened"):
+    return dict(seed=0, objects=[dict(name="Obj", primitive=primitive, transform=transform, location=list(location),
+                                      rotation=list(rotation), scale=list(scale), smooth=True)],
+                floor=dict(half_size=10.0, rotation=[0, 0, 0], z=0.0), lights=[light],
+                camera=dict(ortho=False, location=[0.5, -4.0, 4.5], target=[0, 0, 0.3], lens=30.0, ortho_scale=5,
+                            inside=None))
+
+
+def _sun(angle, location=(1.0, -0.5, 4.0)):
+    return dict(name="Sun", type="SUN", location=list(location), target=[0, 0, 0], scale=[1, 1, 1],
+                scale_kind="one", distance=4.0, angle=angle, energy=3.0)
+
+
+def _mae(params, technique="REFERENCE"):
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.core.settings import RenderSettings
+    from penumbra.engine.measure import reference
+    from penumbra.engine.measure.metrics import compare
+    from penumbra.engine.render import pipeline
+    scene = fuzz.build(params)
+    ref = reference.cycles_visibility(scene, samples=fuzz.CYCLES_SAMPLES, width=64, height=64)
+    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+    v = pipeline.render(snap, RenderSettings(technique=technique)).passes["Visibility"][..., 0]
+    m = compare(v, ref.visibility, ref.mask)
+    return m["mae_shadow"], m["n_shadow"]
+
+
+@pytest.mark.parametrize("scale,rotation", [((0.8, 0.8, 0.0), (0, 0, 0)), ((0.8, 0.0, 0.8), (1.2, 0.3, 0.0))],
+                         ids=["z0", "y0_rotated"])
+def test_flattened_caster_shadows_as_in_cycles(scale, rotation):
+    """Issue 10 item 4: a torus with one scale axis at 0 casts its shadow. REFERENCE measured 0.0058 and 0.0046
+    against a Cycles noise floor of 0.002-0.003 (second seed); the bound leaves room for that noise twice."""
+    mae, n = _mae(_one_object_scene("TORUS", scale, rotation, _sun(0.1)))
+    assert n > 40
+    assert mae < 0.012, mae
+
+
+@pytest.mark.parametrize("angle", [3.0, math.pi], ids=["3rad", "180deg"])
+def test_wide_sun_visibility_as_in_cycles(angle):
+    """Issue 10 item 5: a ball over the floor under a sun of 3 rad and 180°. REFERENCE samples the cone uniformly
+    with cosine weights: measured 0.0096 / 0.0098 (before: 0.047 / 0.050 with the disk of tan θ; Cycles'
+    noise floor 0.0037); 0.015 leaves Cycles' noise and REFERENCE's 64 samples their share."""
+    params = _one_object_scene("UV_SPHERE", (0.5, 0.5, 0.5), (0, 0, 0), _sun(angle, (1.5, -1.0, 4.0)),
+                               location=(0.0, 0.0, 0.9), transform="plain")
+    params["camera"].update(location=[0.5, -5.0, 4.0], target=[0.0, 0.0, 0.3])
+    mae, n = _mae(params)
+    assert n > 500
+    assert mae < 0.015, mae
+
+
+# ----------------------------------------------------------------------------------------------------------
+# the long sweep
+# ----------------------------------------------------------------------------------------------------------
+
+SWEEP_SEEDS = range(1000, 1200)
+# Every technique fails somewhere in 200 random scenes today, for these known reasons (see the fuzz report in
+# issue 10): strict, so a technique's test turns red when its last failure is fixed and the marker must go.
+SWEEP_XFAIL = ("known classes: wide lights whose receivers do not fit one view ('treated as lit'; views per "
+               "light, lead), grazing receivers and self-shadowing acne (another engineer), the camera inside a "
+               "closed object")
+
+
+@pytest.fixture(scope="module")
+def sweep_rows():
+    return fuzz.run(SWEEP_SEEDS.start, len(SWEEP_SEEDS))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("technique", [pytest.param(t, marks=pytest.mark.xfail(strict=True, reason=SWEEP_XFAIL))
+                                       for t in TECHNIQUES])
+def test_sweep_no_scene_over_its_bound(sweep_rows, technique):
+    bad = [r for r in sweep_rows if r.technique == technique and r.status != "ok"]
+    assert not bad, f"{len(bad)} scene(s) over the bound:\n" + "\n".join(fuzz.format_row(r) for r in bad[:20])
+
+
+def test_params_survive_json():
+    """Saved failures carry their parameters as JSON: they must rebuild the same scene."""
+    import json
+    p = fuzz.scene_params(11)
+    assert json.loads(json.dumps(p)) == p
+    q = copy.deepcopy(p)
+    assert fuzz.describe(q) == fuzz.describe(p)
