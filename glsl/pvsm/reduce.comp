@@ -11,7 +11,7 @@ layout(r32f, binding = 0) uniform writeonly image2D u_dst;
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(p)) return;
-    float z = 3.0e38;
+    float z = NO_OCCLUDER;
     for (int j = 0; j < u_block; ++j)
         for (int i = 0; i < u_block; ++i) {
             ivec2 t = p * u_block + ivec2(i, j);

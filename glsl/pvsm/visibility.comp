@@ -146,7 +146,7 @@ mat2 pixel_footprint(ivec2 px, vec3 p, vec3 n) {
     float cap = 0.25 * float(max(u_map_size.x, u_map_size.y));
     for (int k = 0; k < 2; ++k) {
         float l = length(m[k]);
-        if (!(l <= 1e30)) m[k] = vec2(0.0);         // NaN or Inf
+        if (!(l <= EMPTY_DEPTH)) m[k] = vec2(0.0);         // NaN or Inf
         else if (l > cap) m[k] *= cap / l;
     }
     return m;

@@ -91,7 +91,7 @@ bool occludes(Tri t, vec2 p, float eta_receiver) {
 // Returns the position (xy) and η (z) of that nearest point.
 vec3 consistent_depth(Tri t, ivec2 k) {
     vec2 lo = vec2(k), hi = lo + 1.0;
-    vec3 best = vec3(0.0, 0.0, -1e30);
+    vec3 best = vec3(0.0, 0.0, -EMPTY_DEPTH);
     for (int i = 0; i < 4; ++i) {
         vec2 corner = vec2(i % 2 == 0 ? lo.x : hi.x, i < 2 ? lo.y : hi.y);
         float e = eta_at(t, corner);
@@ -178,7 +178,7 @@ void collect(vec2 n, vec2 o, float side) {
 // φ(t): the boundary vertices linked in order along the axis; beyond the last one the boundary stays at
 // its height. True when the point (t, d) is on the shadow side of φ.
 bool beyond_phi(vec2 td) {
-    float tl = -1e30, dl = 0.0, tr = 1e30, dr = 0.0;
+    float tl = -EMPTY_DEPTH, dl = 0.0, tr = EMPTY_DEPTH, dr = 0.0;   // ±"infinity": beyond any depth
     bool has_l = false, has_r = false;
     for (int i = 0; i < g_count; ++i) {
         vec2 q = g_td[i];
