@@ -74,23 +74,25 @@ class AveragedMaps(Technique):
         sums = frame.texture((frame.width, frame.height), 4)
         sums.write(np.zeros((frame.height, frame.width, 4), np.float32).tobytes())
         weight_mode = 0
-        if s.reference_weighted and light.kind != SUN:
-            weight_mode = 1 if light.kind == AREA else 2
+        if s.reference_weighted:
+            weight_mode = {AREA: 1, SUN: 3}.get(light.kind, 2)
         for i, offset in enumerate(offsets):
             frame.progress.check()
             if light.kind == SUN:
-                view = lightview.fit(tilted_sun(light, offset), lc.receivers, lc.casters, s.shadow_map_size)
-                sample_world = light.position
+                sample_light = tilted_sun(light, offset)
+                view = lightview.fit(sample_light, lc.receivers, lc.casters, s.shadow_map_size)
+                sample_world, emit = light.position, sample_light.direction
             else:
                 local = np.array([offset[0], offset[1], 0.0])
                 view = lightview.fit(light, lc.receivers, lc.casters, s.shadow_map_size, origin_local=local)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
+                emit = light.direction
             with frame.timings.stage("shadow_map"):
                 depth = frame.render_depth_map(view)
             with frame.timings.stage("visibility"):
                 frame.dispatch("reference/accumulate.comp", {
                     **frame.bias_uniforms, **view.uniforms(), "u_sample_position": tuple(sample_world),
-                    "u_emit_dir": tuple(light.direction), "u_weight_mode": weight_mode},
+                    "u_emit_dir": tuple(emit), "u_weight_mode": weight_mode},
                     samplers={"g_irradiance": lc.irradiance, "u_depth_map": depth}, images={0: sums})
             frame.progress.step((i + 1) / len(offsets), f"{light.name}: sample {i + 1}/{len(offsets)}")
         frame.dispatch("reference/resolve.comp", samplers={"u_sums": sums}, images={0: out})

@@ -54,8 +54,10 @@ class Technique:
 
 
 def light_shape_uniforms(light: Light, view: LightView) -> dict:
-    """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun) and whether it
-    is round (disk, ellipse, sphere, sun) or rectangular: what filter kernels and samplers need."""
+    """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun), whether it
+    is round (disk, ellipse, sphere, sun) or rectangular, and whether it is a one-sided planar emitter and
+    its emission axis in the view's frame: what filter kernels, samplers and their weights need."""
+    import numpy as np
     from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
     if light.kind == AREA:
         half = (light.size_x / 2.0, light.size_y / 2.0)
@@ -66,4 +68,6 @@ def light_shape_uniforms(light: Light, view: LightView) -> dict:
         half, round_ = (t, t), True
     else:
         half, round_ = (light.radius, light.radius), True
-    return {"u_light_half": half, "u_light_round": int(round_)}
+    emit = np.asarray(view.view, float)[:3, :3] @ np.asarray(light.direction, float)
+    return {"u_light_half": half, "u_light_round": int(round_), "u_light_one_sided": int(light.kind == AREA),
+            "u_light_emit": tuple(float(x) for x in emit)}

@@ -41,7 +41,6 @@
 #define NEED_AREA 1
 #endif
 
-uniform vec2 u_light_half;      // half size of the light: metres, or tan(angle/2) for the sun
 uniform int u_round;            // disk / ellipse / sphere / sun: samples outside the ellipse never count
 uniform int u_delta;            // light without extent: plain hard shadow
 uniform int u_budget;           // b: at most b×b micro-occluders per layer
@@ -52,7 +51,6 @@ uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per c
 uniform uint u_valid[BITS];     // per bitmask row: samples inside the light's shape
 #endif
 uniform float u_valid_count;
-uniform int u_area_light;       // one-sided planar emitter (its cosine counts in the sample weights)
 
 uniform sampler2D u_depth;      // layer 0 depth map (R32F), for delta lights
 uniform sampler2D u_hsm0;       // per layer: min/max pyramid (RG32F, power-of-two padded)
@@ -327,17 +325,14 @@ void microquad(int layer, int l, ivec2 c) {
 
 // ---- main -------------------------------------------------------------------------------------------------
 #if WEIGHTED
-// Unoccluded contribution of light sample (row l, column k) at the receiver: cosθ_receiver · cosθ_light / d²
-// for an area light, cosθ_receiver / d² for a sphere's disk. The light-local sample position mirrors
+// Unoccluded contribution of light sample (row l, column k) at the receiver (light_view.glsl's
+// light_sample_weight, with the shading normal: zero below the horizon). The sample position mirrors
 // sample_positions() in engine/techniques/backprojection.py.
+vec3 g_shading;
 float sample_weight(int l, int k) {
     float n = float(BITS);
     vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
-    vec3 to_sample = vec3(q * u_light_half, 0.0) - g_r.local;
-    float d2 = max(dot(to_sample, to_sample), 1e-30);
-    float w = max(dot(g_r.normal, to_sample), 0.0) / (d2 * sqrt(d2));
-    if (u_area_light == 1) w *= max(to_sample.z, 0.0) * inversesqrt(d2);
-    return w;
+    return light_sample_weight(g_r, g_shading, q);
 }
 #endif
 
@@ -353,6 +348,9 @@ void main() {
         return;
     }
     g_r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+#if WEIGHTED
+    g_shading = view_direction(texelFetch(g_normal, px, 0).xyz);
+#endif
     g_d = g_r.map.z;
     g_tex = (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
     g_tp = window_coords(g_r.local);
@@ -363,7 +361,7 @@ void main() {
     vec3 rgb = vec3(1.0);
 
     if (u_delta == 1) {
-        v = map_lit(u_depth, ivec2(floor(g_r.map.xy)), d_biased);
+        v = map_lit_plane(u_depth, ivec2(floor(g_r.map.xy)), g_r);
         cls = v > 0.5 ? 0.0 : 1.0;
         a_vis = v;
         rgb = vec3(v);

@@ -7,7 +7,8 @@
 uniform sampler2D u_depth_map;
 uniform vec3 u_sample_position;   // world position of the sample (perspective views)
 uniform vec3 u_emit_dir;          // light's emission axis (world)
-uniform int u_weight_mode;        // 0: none, 1: area (both cosines), 2: sphere (receiver cosine)
+uniform int u_weight_mode;        // 0: none, 1: area (both cosines), 2: sphere (receiver cosine),
+                                  // 3: sun (receiver cosine of the sample's direction)
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
 
 void main() {
@@ -15,9 +16,13 @@ void main() {
     if (!pixel_in_image(px) || !pixel_lit(px)) return;
     vec3 p = texelFetch(g_position, px, 0).xyz;
     Receiver r = make_receiver(p, texelFetch(g_geometric, px, 0).xyz);
-    float v = map_lit(u_depth_map, ivec2(floor(r.map.xy)), r.map.z - r.bias);
+    float v = map_lit_plane(u_depth_map, ivec2(floor(r.map.xy)), r);
     float w = 1.0;
-    if (u_weight_mode > 0) {
+    if (u_weight_mode == 3) {
+        // A sun's sample directions all carry the same radiance: the receiver's cosine is its weight, zero
+        // for directions below the horizon.
+        w = max(dot(texelFetch(g_normal, px, 0).xyz, -u_emit_dir), 0.0);
+    } else if (u_weight_mode > 0) {
         vec3 to_sample = u_sample_position - p;
         float d2 = max(dot(to_sample, to_sample), 1e-30);
         vec3 dir = to_sample * inversesqrt(d2);
