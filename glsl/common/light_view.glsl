@@ -65,7 +65,9 @@ Receiver make_receiver(vec3 p, vec3 ng) {
 float receiver_depth_at(Receiver r, vec2 map_pos) {
     vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
     float np = dot(r.normal, r.local);
-    float far = 2.0 * r.map.z;      // beyond twice the receiver's depth nothing counts as its blocker
+    // Nothing beyond the receiver's own depth counts: a texel ray that runs past the receiver without meeting
+    // its plane (grazing) hits surfaces behind it, which cannot shadow it.
+    float far = r.map.z;
     float z;
     if (u_light_ortho == 1) {
         // point (w, -z): above the plane where n.xy·w − n.z·z > np; the light is above when n.z > 0
