@@ -48,7 +48,8 @@ def _geometry_fingerprint(scene) -> dict[str, np.ndarray]:
 def test_list_scenes_matches_registry():
     listed = scenes.list_scenes()
     assert [n for n, _ in listed] == NAMES
-    assert {"plane", "suzanne", "balls", "silhouette", "contact", "thin", "city", "grazing"} <= set(NAMES)
+    assert {"plane", "suzanne", "balls", "silhouette", "contact", "thin", "city", "grazing",
+            "cube", "tilted", "room", "flattened", "slab"} <= set(NAMES)
     for name, desc in listed:
         assert desc and "\n" not in desc, name
 
@@ -71,7 +72,7 @@ def test_scene_is_complete(name):
     assert not scene.render.film_transparent
     assert scene.camera is not None and scene.camera.type == "CAMERA"
     lights = [o for o in scene.objects if o.type == "LIGHT"]
-    assert any(o.data.type == "AREA" and o.data.energy > 0 for o in lights)
+    assert any(o.name == scenes.LIGHT_NAME and o.data.energy > 0 for o in lights)
     ground = scene.objects.get(scenes.GROUND_NAME)
     assert ground is not None and ground.type == "MESH"
     occluders = [o for o in scene.objects if o.type == "MESH" and o.name != scenes.GROUND_NAME]

@@ -3,7 +3,8 @@
 Used by the command line (``python -m penumbra render --scene NAME``), the tests and the benchmarks.
 Every scene is deterministic (the only randomness is seeded) and has
 
-* one AREA light named "Light" (emitting along its local -Z), powered so that the unshadowed ground near
+* one light named "Light" (an AREA light emitting along its local -Z; `room` has a sphere light,
+  `flattened` and `slab` a sun), powered so that the unshadowed ground near
   the shadow has a Lambertian radiance of about ``TARGET_RADIANCE`` (ground albedo ``GROUND_ALBEDO``);
 * a large receiver plane named "Ground" (z = 0, albedo 0.8 grey) that fills the camera's view;
 * a camera named "Camera" framing the shadow so that the penumbra covers a good part of the image;
@@ -408,6 +409,145 @@ def _build_grazing(scene):
     _add_camera(scene, (1.6, -1.4, 4.0), (1.6, 0.3, 0.0), lens=35)
 
 
+def _power_for_radiance(obj, point, normal, radiance=TARGET_RADIANCE) -> None:
+    """Set any light's power so that an unshadowed ground at `point` (surface `normal`) has Lambertian
+    radiance `radiance`, through the renderer's own light conventions (extraction + analytic irradiance)."""
+    from ..blender.extract import make_light
+    from ..core.irradiance import irradiance
+    obj.data.energy = 1.0
+    light = make_light(obj.name, obj.data, np.array(obj.matrix_world, float), lambda _text: None)
+    e = float(irradiance(light, np.asarray([point], float), np.asarray([normal], float))[0, 1])
+    obj.data.energy = radiance / (GROUND_ALBEDO / math.pi * e)
+
+
+def _add_sun(scene, direction_to_sun, angle, *, reference_normal=(0.0, 0.0, 1.0)):
+    """A SUN light shining along -`direction_to_sun` with angular diameter `angle` (radians)."""
+    data = bpy.data.lights.new(LIGHT_NAME, "SUN")
+    data.angle = float(angle)
+    data.use_shadow = True
+    obj = _link(scene, bpy.data.objects.new(LIGHT_NAME, data))
+    d = Vector(direction_to_sun).normalized()
+    obj.matrix_world = _look_at_matrix(d * 10.0, (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))
+    _power_for_radiance(obj, (0.0, 0.0, 0.0), reference_normal)
+    return obj
+
+
+def _uv_sphere_mesh(name, radius, material, u=32, v=16):
+    me = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=u, v_segments=v, radius=radius)
+    bm.to_mesh(me)
+    bm.free()
+    me.shade_smooth()
+    me.materials.append(material)
+    return me
+
+
+def _build_cube(scene):
+    """Blender's default cube (2 m, flat-shaded) resting on the floor under a 3 m overhead area light,
+    seen from the default camera's side: its side faces are edge-on from the light centre and lit by the
+    rest of the light (grazing receivers, where shadow maps show acne and half-lit faces)."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    _add_box(scene, "Cube", (0.0, 0.0, 1.0), (2.0, 2.0, 2.0), occ)
+    _add_area_light(scene, (0.0, 0.0, 5.0), (0.0, 0.0, 0.0), 3.0, reference_point=(2.5, 0.0, 0.0))
+    _add_camera(scene, (7.36, -6.93, 4.96), (0.0, 0.0, 0.6), lens=50)
+
+
+def _build_tilted(scene):
+    """A floor tilted 25 degrees about X with a sphere resting on it, under a 2 m x 1 m rectangle light:
+    a receiver that is not perpendicular to the light axis (PCSS's blocker search meets the floor itself)."""
+    tilt = Matrix.Rotation(math.radians(25.0), 4, "X")
+    ground = _add_ground(scene, half_size=8.0)
+    ground.matrix_world = tilt
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    radius = 0.5
+    sphere = _link(scene, bpy.data.objects.new("Sphere", _uv_sphere_mesh("Sphere", radius, occ)))
+    normal = tilt.to_3x3() @ Vector((0.0, 0.0, 1.0))
+    sphere.location = normal * radius               # touching the floor at the origin
+    _add_area_light(scene, (0.0, 0.0, 3.0), (0.0, 0.0, 0.0), 2.0, size_y=1.0,
+                    reference_point=(1.4, 0.0, 0.0), reference_normal=tuple(normal))
+    _add_camera(scene, (0.6, -3.6, 3.2), (0.2, 0.0, 0.2), lens=35)
+
+
+def _build_room(scene):
+    """A closed 6 x 5 x 3 m room (floor, walls and ceiling facing inwards) lit by a 0.15 m sphere light
+    under the ceiling, a box and a sphere on the floor: receivers on every side of a point-like light."""
+    material = diffuse_material("GroundMaterial", (GROUND_ALBEDO,) * 3)
+    hx, hy, h = 3.0, 2.5, 3.0
+    _mesh_object(scene, GROUND_NAME, [(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)],
+                 [(0, 1, 2, 3)], material)
+    verts, faces = _box_geometry((0.0, 0.0, h / 2.0), (2 * hx, 2 * hy, h))
+    inward = [tuple(reversed(f)) for f in faces[1:]]          # no floor quad; winding turned inwards
+    _mesh_object(scene, "Walls", verts, inward, material)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    _add_box(scene, "Box", (0.6, 0.4, 0.4), (0.8, 0.8, 0.8), occ)
+    sphere = _link(scene, bpy.data.objects.new("Ball", _uv_sphere_mesh("Ball", 0.35, occ)))
+    sphere.location = (-0.9, -0.5, 0.35)
+    data = bpy.data.lights.new(LIGHT_NAME, "POINT")
+    data.shadow_soft_size = 0.15
+    data.use_shadow = True
+    obj = _link(scene, bpy.data.objects.new(LIGHT_NAME, data))
+    obj.location = (0.0, 0.0, 2.4)
+    bpy.context.view_layer.update()
+    _power_for_radiance(obj, (1.5, -1.0, 0.0), (0.0, 0.0, 1.0))
+    _add_camera(scene, (2.6, -2.2, 2.2), (-0.2, 0.3, 0.4), lens=22)
+
+
+def _build_flattened(scene):
+    """Casters with one object scale axis at 0 under a slightly soft sun: a torus squashed flat into a
+    ring (scale z = 0) floating over the ground and a cube squashed into a vertical wall (scale y = 0).
+    Their matrices are singular, yet Cycles shadows them."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    me = bpy.data.meshes.new("Torus")
+    bm = bmesh.new()
+    segments, sides, big, small = 32, 12, 0.6, 0.2
+    rings = []
+    for i in range(segments):
+        a = 2 * math.pi * i / segments
+        ring = []
+        for j in range(sides):
+            b = 2 * math.pi * j / sides
+            r = big + small * math.cos(b)
+            ring.append(bm.verts.new((r * math.cos(a), r * math.sin(a), small * math.sin(b))))
+        rings.append(ring)
+    for i in range(segments):
+        for j in range(sides):
+            a, b = rings[i], rings[(i + 1) % segments]
+            bm.faces.new((a[j], b[j], b[(j + 1) % sides], a[(j + 1) % sides]))
+    bm.to_mesh(me)
+    bm.free()
+    me.shade_smooth()
+    me.materials.append(occ)
+    torus = _link(scene, bpy.data.objects.new("Torus", me))
+    torus.matrix_world = Matrix.Translation((-0.7, 0.3, 1.0)) @ Matrix.Diagonal((1.0, 1.0, 0.0, 1.0))
+    wall = _add_box(scene, "Wall", (0.0, 0.0, 0.0), (1.0, 1.0, 1.0), occ)
+    wall.matrix_world = (Matrix.Translation((1.0, -0.3, 0.6)) @ Matrix.Rotation(math.radians(20), 4, "Z")
+                         @ Matrix.Diagonal((1.2, 0.0, 1.2, 1.0)))
+    _add_sun(scene, (-0.35, 0.25, 1.0), 0.08)
+    _add_camera(scene, (0.8, -3.8, 3.4), (0.2, 0.4, 0.0), lens=35)
+
+
+def _build_slab(scene):
+    """A thin upright slab (1.6 x 1.0 x 0.04 m) whose face the sun meets at 10 degrees, with the sun 0.5 rad
+    wide: part of the sun's disk lies below the face's tangent plane (no light, not a shadow) and the face
+    is lit by the rest. The ground sees the sun at 50 degrees elevation."""
+    _add_ground(scene)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    elevation = math.radians(50.0)
+    to_sun = Vector((math.cos(elevation), 0.0, math.sin(elevation)))
+    # the face normal is horizontal at azimuth a with cos(elevation)·cos(a) = cos(80°)
+    azimuth = math.acos(math.cos(math.radians(80.0)) / math.cos(elevation))
+    slab = _add_box(scene, "Slab", (0.0, 0.0, 0.0), (1.6, 0.04, 1.0), occ)
+    # box local -Y/+Y are the big faces; turn local +Y onto the face normal
+    slab.matrix_world = (Matrix.Translation((0.0, 0.0, 0.5))
+                         @ Matrix.Rotation(azimuth - math.pi / 2.0, 4, "Z"))
+    _add_sun(scene, to_sun, 0.5)
+    face = Vector((math.cos(azimuth), math.sin(azimuth), 0.0))
+    _add_camera(scene, tuple(face * 3.2 + Vector((0.4, 0.0, 1.6))), (0.0, 0.0, 0.4), lens=35)
+
+
 Builder = Callable[[bpy.types.Scene], None]
 
 SCENES: "OrderedDict[str, tuple[Builder, str]]" = OrderedDict([
@@ -419,6 +559,11 @@ SCENES: "OrderedDict[str, tuple[Builder, str]]" = OrderedDict([
     ("thin", (_build_thin, "woven grid of 2 mm bars, thinner than a 1024^2 shadow-map texel")),
     ("city", (_build_city, "150x150 seeded boxes, 225k triangles in one mesh")),
     ("grazing", (_build_grazing, "light at 5 deg elevation: rays hit the ground at ~85 deg")),
+    ("cube", (_build_cube, "Blender's default cube on the floor under an overhead area light: edge-on faces")),
+    ("tilted", (_build_tilted, "sphere resting on a floor tilted 25 deg under a rectangle light")),
+    ("room", (_build_room, "sphere light inside a closed room with a box and a ball: receivers all around")),
+    ("flattened", (_build_flattened, "casters with one scale axis 0 (flat torus, flat cube) under a sun")),
+    ("slab", (_build_slab, "thin upright slab lit 10 deg off edge-on by a 0.5 rad sun")),
 ])
 
 

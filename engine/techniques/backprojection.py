@@ -210,12 +210,11 @@ class Backprojection(Technique):
         shape = light_shape_uniforms(light, view)
         n, jx, jy = sample_pattern(accumulation) if bits else (0, (0.5, 0.5), (0.5, 0.5))
         valid = valid_mask(accumulation, round_) if bits else np.zeros((0, 0), bool)
-        uniforms = {**lc.uniforms, "u_light_half": shape["u_light_half"], "u_round": int(round_),
+        uniforms = {**lc.uniforms, **shape, "u_round": int(round_),
                     "u_delta": int(light.is_delta), "u_budget": int(o["bp_budget"]), "u_levels": int(levels),
                     "u_mssm_levels": int(n_mssm),
                     "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
-                    "u_valid_count": float(max(valid.sum(), 1)),
-                    "u_area_light": int(light.kind == AREA)}
+                    "u_valid_count": float(max(valid.sum(), 1))}
         info = frame.texture(size, 4)
         images = {0: out, 1: info}
         rgb_tex = None
@@ -231,9 +230,7 @@ class Backprojection(Technique):
             lc.visibility_rgb = rgb_tex         # Combined shades each channel with its own visibility
         defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
                    "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
-                   # Irradiance weights need a light plane at a finite distance: not for suns.
-                   "WEIGHTED": int(bits > 0 and o["bp_weighting"] == "IRRADIANCE" and light.kind != SUN
-                                   and not light.is_delta),
+                   "WEIGHTED": int(bits > 0 and o["bp_weighting"] == "IRRADIANCE" and not light.is_delta),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes)}
         frame.progress.check()
         with frame.timings.stage("bp_gather"):

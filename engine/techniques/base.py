@@ -63,8 +63,12 @@ class Technique:
 
 
 def light_shape_uniforms(light: Light, view: LightView) -> dict:
-    """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun) and whether it
-    is round (disk, ellipse, sphere, sun) or rectangular: what filter kernels and samplers need."""
+    """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun), whether it
+    is round (disk, ellipse, sphere, sun) or rectangular, and whether it is a one-sided planar emitter and
+    its emission axis in the view's frame: what filter kernels, samplers and their weights need."""
+    import numpy as np
     from ..core.snapshot import AREA, DISK, ELLIPSE
     round_ = light.kind != AREA or light.shape in (DISK, ELLIPSE)
-    return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(round_)}
+    emit = np.asarray(view.view, float)[:3, :3] @ np.asarray(light.direction, float)
+    return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(round_),
+            "u_light_one_sided": int(light.kind == AREA), "u_light_emit": tuple(float(x) for x in emit)}

@@ -16,7 +16,7 @@ void main() {
     if (!pixel_in_image(px) || !pixel_lit(px)) return;
     vec3 p = texelFetch(g_position, px, 0).xyz;
     Receiver r = make_receiver(p, texelFetch(g_geometric, px, 0).xyz);
-    float v = map_lit(u_depth_map, ivec2(floor(r.map.xy)), r.map.z - r.bias);
+    float v = map_lit_plane(u_depth_map, ivec2(floor(r.map.xy)), r);
     float w = 1.0;
     if (u_weight_mode == WEIGHT_SUN) {
         // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts

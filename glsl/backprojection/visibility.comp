@@ -42,7 +42,6 @@
 #define NEED_AREA 1
 #endif
 
-uniform vec2 u_light_half;      // half size of the light: metres, or tan(angle/2) for the sun
 uniform int u_round;            // disk / ellipse / sphere / sun: samples outside the ellipse never count
 uniform int u_delta;            // light without extent: plain hard shadow
 uniform int u_budget;           // b: at most b×b micro-occluders per layer
@@ -53,7 +52,6 @@ uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per c
 uniform uint u_valid[BITS];     // per bitmask row: samples inside the light's shape
 #endif
 uniform float u_valid_count;
-uniform int u_area_light;       // one-sided planar emitter (its cosine counts in the sample weights)
 
 uniform sampler2D u_depth;      // layer 0 depth map (R32F), for delta lights
 uniform sampler2D u_hsm0;       // per layer: min/max pyramid (RG32F, power-of-two padded)
@@ -81,6 +79,7 @@ struct Pixel {
     float d;
     vec2 tp;
     vec2 tex;
+    vec3 shading;       // shading normal in the view's frame (the sample weights' horizon)
 };
 
 // Occlusion gathered so far: the N×N bitmask of light samples hidden (§3) and the summed occluded fraction
@@ -343,17 +342,13 @@ bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
 }
 
 #if WEIGHTED
-// Unoccluded contribution of light sample (row l, column k) at the receiver: cosθ_receiver · cosθ_light / d²
-// for an area light, cosθ_receiver / d² for a sphere's disk. The light-local sample position mirrors
+// Unoccluded contribution of light sample (row l, column k) at the receiver (light_view.glsl's
+// light_sample_weight, with the shading normal: zero below the horizon). The sample position mirrors
 // sample_positions() in engine/techniques/backprojection.py.
 float sample_weight(Pixel p, int l, int k) {
     float n = float(BITS);
     vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
-    vec3 to_sample = vec3(q * u_light_half, 0.0) - p.r.local;
-    float d2 = max(dot(to_sample, to_sample), 1e-30);       // m²: a receiver on the light plane
-    float w = max(dot(p.r.normal, to_sample), 0.0) / (d2 * sqrt(d2));
-    if (u_area_light == 1) w *= max(to_sample.z, 0.0) * inversesqrt(d2);
-    return w;
+    return light_sample_weight(p.r, p.shading, q);
 }
 #endif
 
@@ -373,6 +368,7 @@ Pixel make_pixel(ivec2 px) {
     p.d = p.r.map.z;
     p.tex = (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
     p.tp = window_coords(p.r.local);
+    p.shading = view_direction(texelFetch(g_normal, px, 0).xyz);
     return p;
 }
 
@@ -497,7 +493,7 @@ void main() {
     Result res = Result(1.0, float(CLASS_LIT), 0.0, 0.0, 1.0, vec3(1.0));
     if (u_delta == 1) {
         // A light without extent: the plain hard shadow-map test.
-        float v = map_lit(u_depth, ivec2(floor(p.r.map.xy)), p.d - p.r.bias);
+        float v = map_lit_plane(u_depth, ivec2(floor(p.r.map.xy)), p.r);
         res = Result(v, float(v > 0.5 ? CLASS_LIT : CLASS_UMBRA), 0.0, 0.0, v, vec3(v));
     } else {
         ivec2 lo, hi;

@@ -55,30 +55,31 @@ Receiver make_receiver(vec3 p, vec3 ng) {
     return r;
 }
 
-// Depth of the receiver's own plane under a map position, less the bias: what a texel there must be
-// nearer than to shadow the receiver. Following the plane instead of using the centre depth keeps a flat
-// receiver from shadowing itself across a wide kernel (receiver-plane depth bias).
+// Depth along the map ray through `map_pos` below which a surface lies on the light's side of the receiver's
+// tangent plane, less the bias: what a texel there must be nearer than to shadow the receiver. A ray from the
+// receiver to a light point above its tangent plane stays above that plane, so nothing below it (the
+// receiver's own surface, a convex object's far side, the face behind an edge) can shadow it; following the
+// plane instead of using the centre depth also keeps a flat receiver from shadowing itself across a wide
+// kernel (receiver-plane depth bias). When the map's origin lies on or below the plane, no ray of the map
+// reaches the receiver from above it: nothing in the map counts as a blocker (0).
 float receiver_depth_at(Receiver r, vec2 map_pos) {
     vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
     float np = dot(r.normal, r.local);
-    float z = r.map.z;
-    // The eye (light centre) above the receiver's plane and this texel's ray meeting the plane in front:
-    // everything on the ray past the plane lies below the receiver's tangent plane, and no point there can
-    // stand between the receiver and any part of the light above that plane (the only part that lights
-    // it). So the plane's depth is a hard upper limit there, however close to the eye it comes.
-    bool eye_above = false;
+    // Nothing beyond the receiver's own depth counts: a texel ray that runs past the receiver without meeting
+    // its plane (grazing) hits surfaces behind it, which cannot shadow it.
+    float far = r.map.z;
+    float z;
     if (u_light_ortho == 1) {
-        if (abs(r.normal.z) > 1e-4) z = (r.normal.x * w.x + r.normal.y * w.y - np) / r.normal.z;
-        eye_above = r.normal.z > 1e-4;
+        // point (w, -z): above the plane where n.xy·w − n.z·z > np; the light is above when n.z > 0
+        if (r.normal.z <= 1e-6) return 0.0;
+        z = (r.normal.x * w.x + r.normal.y * w.y - np) / r.normal.z;
     } else {
+        // point z·(w, −1): above the plane where z·den > np; the light (the origin) is above when np < 0
+        if (np >= 0.0) return 0.0;
         float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
-        if (abs(den) > 1e-6 && np / den > 0.0) z = np / den;
-        eye_above = np < 0.0 && den < -1e-6;     // 1e-6: den is a tangent-space dot product, unitless
+        z = den < 0.0 ? np / den : far;     // a ray that never meets the plane stays above it
     }
-    // Far from the centre a steep plane can run away: never trust it beyond twice the centre's distance,
-    // nor (where the eye is below the plane or the ray misses it) nearer than half of it.
-    z = eye_above ? min(z, 2.0 * r.map.z) : clamp(z, 0.5 * r.map.z, 2.0 * r.map.z);
-    return z - r.bias;
+    return min(z, far) - r.bias;
 }
 
 // Hard comparison against one texel: 1 lit, 0 shadowed. Outside the map counts as lit.
@@ -87,14 +88,46 @@ float map_lit(sampler2D map, ivec2 texel, float receiver_depth) {
     return texelFetch(map, texel, 0).r < receiver_depth ? 0.0 : 1.0;
 }
 
-// Bilinear percentage-closer comparison at a fractional texel position.
-float map_lit_bilinear(sampler2D map, vec2 pos, float receiver_depth) {
+// Receiver-plane test of one texel: the plane's depth at the texel's own centre, where the map sampled it,
+// so that a planar receiver matches its own texels exactly.
+float map_lit_plane(sampler2D map, ivec2 texel, Receiver r) {
+    return map_lit(map, texel, receiver_depth_at(r, vec2(texel) + 0.5));
+}
+
+// Bilinear percentage-closer comparison at a fractional texel position, each texel against the receiver's
+// plane at that texel.
+float map_lit_bilinear_plane(sampler2D map, vec2 pos, Receiver r) {
     vec2 p = pos - 0.5;
     ivec2 i = ivec2(floor(p));
     vec2 f = p - vec2(i);
-    float a = map_lit(map, i, receiver_depth);
-    float b = map_lit(map, i + ivec2(1, 0), receiver_depth);
-    float c = map_lit(map, i + ivec2(0, 1), receiver_depth);
-    float d = map_lit(map, i + ivec2(1, 1), receiver_depth);
+    float a = map_lit_plane(map, i, r);
+    float b = map_lit_plane(map, i + ivec2(1, 0), r);
+    float c = map_lit_plane(map, i + ivec2(0, 1), r);
+    float d = map_lit_plane(map, i + ivec2(1, 1), r);
     return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
+}
+
+// The light as kernels over it see it (filled by techniques/base.py light_shape_uniforms).
+uniform vec2 u_light_half;        // half extent in the view's frame: metres, or tan(angle/2) for a sun
+uniform int u_light_round;        // disk, ellipse, sphere, sun: kernels over a disk
+uniform int u_light_one_sided;    // 1: a planar emitter, whose own cosine counts in a sample's weight
+uniform vec3 u_light_emit;        // its emission axis in the view's frame
+
+// A world direction (a normal) in the light view's frame.
+vec3 view_direction(vec3 world_dir) {
+    return mat3(u_light_view) * world_dir;
+}
+
+// Unoccluded contribution at receiver r (shading normal n, view frame) of the light point that kernel
+// position k ∈ [-1, 1]² stands for (k·half on the light plane; the direction (k·half, 1) for a sun): the
+// receiver's cosine, times the emitter's cosine over d² for a planar light, over d² for a sphere's disk.
+// Zero below the receiver's horizon: such a point carries no light, so it counts neither as lit nor occluded.
+float light_sample_weight(Receiver r, vec3 n, vec2 k) {
+    if (u_light_ortho == 1) return max(dot(n, normalize(vec3(k * u_light_half, 1.0))), 0.0);
+    vec3 to_sample = vec3(k * u_light_half, 0.0) - r.local;
+    float d2 = max(dot(to_sample, to_sample), 1e-30);
+    vec3 dir = to_sample * inversesqrt(d2);
+    float w = max(dot(n, dir), 0.0) / d2;
+    if (u_light_one_sided == 1) w *= max(-dot(dir, u_light_emit), 0.0);
+    return w;
 }

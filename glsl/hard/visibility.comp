@@ -1,4 +1,5 @@
-// HARD: one nearest-texel comparison against the depth map from the light centre.
+// HARD: one nearest-texel comparison against the depth map from the light centre (against the receiver's
+// tangent plane at that texel: a receiver facing away from the centre gets no shadow from this map).
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 
@@ -11,7 +12,7 @@ void main() {
     float v = 1.0;
     if (pixel_lit(px)) {
         Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
-        v = map_lit(u_depth_map, ivec2(floor(r.map.xy)), r.map.z - r.bias);
+        v = map_lit_plane(u_depth_map, ivec2(floor(r.map.xy)), r);
     }
     imageStore(u_visibility, px, vec4(v));
 }

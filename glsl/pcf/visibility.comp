@@ -19,7 +19,7 @@ void main() {
             for (int i = 0; i < u_taps; ++i) {
                 vec2 offset = (vec2(i, j) - 0.5 * float(u_taps - 1)) * step_size;
                 vec2 q = r.map.xy + offset;
-                sum += map_lit_bilinear(u_depth_map, q, receiver_depth_at(r, q));
+                sum += map_lit_bilinear_plane(u_depth_map, q, r);
             }
         v = sum / float(u_taps * u_taps);
     }

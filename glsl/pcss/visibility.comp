@@ -2,14 +2,22 @@
 // h·(1/z − 1/d) in tangent units of a perspective map (similar triangles through the blocker), or
 // tan(angle/2)·(d − z) metres for a sun's ortho map. The blocker search uses the widest such region (the
 // near plane), the filter the one at the mean blocker depth.
+//
+// By the same similar triangles, kernel position k ∈ [-1, 1]² (search or filter) looks along the ray from the
+// receiver towards the light point k·h: taps whose point lies below the receiver's horizon carry no light and
+// count neither as blockers nor in the filter's mean. (Weighting the other taps by their irradiance, as
+// REFERENCE does, was measured worse: PCSS's tap-to-light correspondence is only approximate; on the stress
+// suite's camera_in_box, mae_shadow 0.056 with this mask, 0.065 weighted.) Every texel is
+// compared with the receiver's tangent plane (light_view.glsl), so a tilted floor never finds itself.
+// Both kernels use one fixed stratified pattern for every pixel: the result is a smooth function of the
+// receiver's position, with no per-pixel noise (a per-pixel rotation turns into salt-and-pepper across the
+// penumbra, whose error no later filter removes).
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #include "common/sampling.glsl"
 #include "common/penumbra.glsl"
 
 uniform sampler2D u_depth_map;
-uniform vec2 u_light_half;
-uniform int u_light_round;
 uniform int u_blocker_samples;
 uniform int u_filter_samples;
 uniform float u_max_radius;     // texels
@@ -27,28 +35,32 @@ void main() {
     float v = 1.0;
     if (pixel_lit(px)) {
         Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+        vec3 n = view_direction(texelFetch(g_normal, px, 0).xyz);
         float d = r.map.z - r.bias;
-        float noise = pixel_noise(px);
         // 1. Blocker search over the region the light can be seen through at the near plane.
         vec2 search = max(penumbra_texels(u_light_depth_range.x, d), vec2(0.5));
-        float blocker_sum = 0.0;
-        int blockers = 0;
+        float blocker_sum = 0.0, blocker_weight = 0.0;
         for (int i = 0; i < u_blocker_samples; ++i) {
-            vec2 q = r.map.xy + kernel_point(i, u_blocker_samples, u_light_round, noise) * search;
-            ivec2 t = ivec2(floor(q));
+            vec2 k = kernel_point(i, u_blocker_samples, u_light_round, 0.0);
+            float w = light_sample_weight(r, n, k) > 0.0 ? 1.0 : 0.0;
+            if (w <= 0.0) continue;
+            ivec2 t = ivec2(floor(r.map.xy + k * search));
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;
             float z = texelFetch(u_depth_map, t, 0).r;
-            if (z < receiver_depth_at(r, q)) { blocker_sum += z; ++blockers; }
+            if (z < receiver_depth_at(r, vec2(t) + 0.5)) { blocker_sum += w * z; blocker_weight += w; }
         }
-        if (blockers > 0) {
-            // 2. Penumbra size from the mean blocker depth; 3. PCF over it.
-            vec2 radius = max(penumbra_texels(blocker_sum / float(blockers), d), vec2(0.5));
-            float sum = 0.0;
+        if (blocker_weight > 0.0) {
+            // 2. Penumbra size from the (weighted) mean blocker depth; 3. weighted PCF over it.
+            vec2 radius = max(penumbra_texels(blocker_sum / blocker_weight, d), vec2(0.5));
+            float sum = 0.0, total = 0.0;
             for (int i = 0; i < u_filter_samples; ++i) {
-                vec2 q = r.map.xy + kernel_point(i, u_filter_samples, u_light_round, 1.0 - noise) * radius;
-                sum += map_lit_bilinear(u_depth_map, q, receiver_depth_at(r, q));
+                vec2 k = kernel_point(i, u_filter_samples, u_light_round, 0.0);
+                float w = light_sample_weight(r, n, k) > 0.0 ? 1.0 : 0.0;
+                if (w <= 0.0) continue;
+                sum += w * map_lit_bilinear_plane(u_depth_map, r.map.xy + k * radius, r);
+                total += w;
             }
-            v = sum / float(u_filter_samples);
+            if (total > 0.0) v = sum / total;
         }
     }
     imageStore(u_visibility, px, vec4(v));

@@ -24,7 +24,6 @@ uniform vec2 u_search_scale;      // search-map texels per filtering-map texel
 uniform sampler2D u_depth_map;    // the filtering map
 uniform int u_filter_levels;      // levels of its (virtual) pyramid: level l keeps every 2^l-th texel
 uniform int u_cap;                // most texels per axis one kernel loop visits: a coarser level beyond it
-uniform vec2 u_light_half;        // light half extent (the equal-variance box of a round light)
 uniform float u_max_radius;       // cap on the search half extent, level-0 texels
 uniform int u_skip_lit;
 uniform int u_outside_lit;        // 1: every caster lies inside the map, so past its edge nothing occludes

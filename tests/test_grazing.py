@@ -1,0 +1,104 @@
+"""Grazing receivers, self-shadowing and tilted receivers against Cycles (issue 10, items 1 and 2), on the
+built-in scenes made for them: `cube` (faces edge-on from the light centre, lit by the rest of the light),
+`tilted` (a floor at 25° under a rectangle light), `slab` (a face 10° off edge-on to a 0.5 rad sun).
+Cycles references are cached on disk."""
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from penumbra.engine.blender.extract import extract  # noqa: E402
+from penumbra.engine.core.settings import RenderSettings  # noqa: E402
+from penumbra.engine.measure import metrics, reference, scenes  # noqa: E402
+from penumbra.engine.render import pipeline  # noqa: E402
+
+RES = (96, 96)
+SPP = 256
+SHADOW_MAP_TECHNIQUES = ["HARD", "PCF", "PCSS", "REFERENCE", "BACKPROJECTION"]
+
+
+def _setup(name, resolution=RES):
+    sc = scenes.build(name, resolution=resolution)
+    return sc, extract(bpy.context.evaluated_depsgraph_get(), sc), reference.cycles_visibility(sc, samples=SPP)
+
+
+def _visibility(snap, technique, **changes):
+    r = pipeline.render(snap, RenderSettings(technique=technique).with_(**changes))
+    return r.passes["Visibility"][..., 0]
+
+
+@pytest.fixture(scope="module")
+def cube():
+    return _setup("cube")
+
+
+@pytest.mark.parametrize("technique", SHADOW_MAP_TECHNIQUES)
+def test_cube_faces_lit_by_part_of_the_light_are_not_shadowed(cube, technique):
+    """The cube's side faces are behind its top as seen from the light centre, yet the light's outer strip
+    lights them fully (Cycles: V ≈ 1). Every technique must leave the pixels Cycles sees fully lit lit:
+    no face shadowed by its own cube, no acne stripes. Before the receiver's tangent plane bounded what can
+    shadow it, HARD and PCF had the faces black and PCSS dark (mae_shadow 0.53, 0.52, 0.41)."""
+    sc, snap, ref = cube
+    v = _visibility(snap, technique)
+    lit = ref.mask & (ref.visibility >= 0.99)
+    assert lit.sum() > 2000
+    dark = float(np.mean(v[lit] < 0.9))
+    print(technique, "share of Cycles-lit pixels below 0.9:", dark)
+    assert dark <= 0.01
+
+
+@pytest.mark.parametrize("name", [
+    "cube", "tilted", "slab",
+    pytest.param("room", marks=pytest.mark.xfail(strict=True, reason=(
+        "one view per light: the room's receivers span more than 160° from the sphere light and pixels "
+        "outside its map are treated as lit (views per light, issue 10 item 3)"))),
+    pytest.param("flattened", marks=pytest.mark.xfail(strict=True, reason=(
+        "extraction drops the triangles of a caster with a zero scale axis, so it casts no shadow "
+        "(singular transforms, issue 10 item 4)")))])
+def test_reference_within_cycles_noise_on_grazing_scenes(name):
+    """REFERENCE (256 samples) within Cycles' own noise floor at 256 spp plus 0.005 (the averaged maps'
+    discretisation, as in test_against_cycles.py). On `slab` a sun sample below the face's horizon used to
+    count as occluded (0.069 at 128²); it now carries weight 0 in the weighted mean. At 128², where the few
+    silhouette pixels whose screen-space geometric normal straddles two surfaces weigh little."""
+    sc, snap, ref = _setup(name, (128, 128))
+    floor = reference.noise_floor(sc, SPP, width=128, height=128)
+    v = _visibility(snap, "REFERENCE", reference_samples=256)
+    m = metrics.compare(v, ref.visibility, ref.mask)
+    print(name, m, floor)
+    assert m["n_shadow"] > 150            # the slab's shadow is a thin band; a dark face would add its pixels
+    assert m["mae_shadow"] <= floor["mae_shadow"] + 0.005
+
+
+@pytest.fixture(scope="module")
+def tilted():
+    return _setup("tilted")
+
+
+@pytest.mark.xfail(strict=True, reason="PCSS's penumbra estimate from the mean blocker depth: over a sphere the "
+                   "blockers found are its top, the silhouette is its equator, so the umbra comes out too light "
+                   "and the outer penumbra too dark (0.063 against REFERENCE's 0.012 at 128²); not a bias issue")
+def test_pcss_on_a_tilted_floor_within_twice_reference(tilted):
+    sc, snap, ref = tilted
+    ours = metrics.compare(_visibility(snap, "PCSS"), ref.visibility, ref.mask)
+    best = metrics.compare(_visibility(snap, "REFERENCE"), ref.visibility, ref.mask)
+    print("PCSS", ours["mae_shadow"], "REFERENCE", best["mae_shadow"])
+    assert ours["mae_shadow"] <= 2.0 * best["mae_shadow"]
+
+
+@pytest.mark.parametrize("name", ["tilted", "suzanne"])
+def test_pcss_has_no_isolated_outliers(name):
+    """Salt-and-pepper across the penumbra is the bug. Over the penumbra (Cycles 0.05 < V < 0.95) where the
+    Cycles image is itself locally smooth (within 0.02 of its 3×3 median, so true edges do not count), PCSS
+    may differ from its own 3×3 median by more than 0.02 at no more than 5 % of the pixels. Measured at 128²:
+    per-pixel rotated sample patterns 23 % (tilted) and 20 % (suzanne); the fixed pattern 1.3 % and 3.8 %."""
+    sc = scenes.build(name, resolution=(128, 128))
+    snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
+    ref = reference.cycles_visibility(sc, samples=SPP)
+    v = _visibility(snap, "PCSS")
+    smooth = np.abs(ref.visibility - metrics.median3x3(ref.visibility, ref.mask)) < 0.02
+    penumbra = ref.mask & (ref.visibility > 0.05) & (ref.visibility < 0.95) & smooth
+    assert penumbra.sum() > 500
+    outliers = np.abs(v - metrics.median3x3(v, ref.mask))[penumbra]
+    share = float(np.mean(outliers > 0.02))
+    print(name, "share > 0.02:", share, "p99", float(np.percentile(outliers, 99)))
+    assert share <= 0.05
