@@ -62,7 +62,7 @@ def test_reference_within_cycles_noise_on_grazing_scenes(name):
     silhouette pixels whose screen-space geometric normal straddles two surfaces weigh little."""
     sc, snap, ref = _setup(name, (128, 128))
     floor = reference.noise_floor(sc, SPP, width=128, height=128)
-    v = _visibility(snap, "REFERENCE", reference_samples=256)
+    v = _visibility(snap, "REFERENCE", averaged_light_samples=256)
     m = metrics.compare(v, ref.visibility, ref.mask)
     print(name, m, floor)
     assert m["n_shadow"] > 150            # the slab's shadow is a thin band; a dark face would add its pixels
