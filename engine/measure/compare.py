@@ -242,6 +242,14 @@ def _diff8(d: np.ndarray) -> np.ndarray:
     return out
 
 
+def comparison_strip(v: np.ndarray, v_ref: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """A plain (H, 3W+8, 3) uint8 strip, top row first: our V | Cycles' | the signed difference (the
+    colours of the compare PNG), for tools that save many of them (fuzz)."""
+    gap = np.full((v.shape[0], 4, 3), 64, np.uint8)
+    d = np.flipud(np.where(mask, v - v_ref, np.nan))
+    return np.concatenate([_grey8(np.flipud(v)), gap, _grey8(np.flipud(v_ref)), gap, _diff8(d)], axis=1)
+
+
 def _panels(cmp: Comparison, scene=None):
     """Rows (Visibility, Combined) of ours, Cycles and the signed difference, row 0 at the top; and the view
     transform's name. Combined goes through `scene`'s colour management."""
