@@ -459,16 +459,20 @@ EXPECTED_FAILURES = {
 # CPU oracle: ray-traced, irradiance-weighted visibility (float64)
 # ----------------------------------------------------------------------------------------------------------
 
-def _pixel_rays(cam: Camera):
-    w, h = cam.width, cam.height
-    xs = (np.arange(w) + 0.5) / w * 2 - 1
-    ys = (np.arange(h) + 0.5) / h * 2 - 1
-    ndc = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
+def ndc_rays(cam: Camera, ndc: np.ndarray):
+    """World points on the near and far planes (N, 3) under NDC positions (N, 2) of the camera."""
     inv = np.linalg.inv(cam.projection @ cam.view)
     n = len(ndc)
     near = np.c_[ndc, -np.ones(n), np.ones(n)] @ inv.T
     far = np.c_[ndc, np.ones(n), np.ones(n)] @ inv.T
-    near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+    return near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+
+
+def _pixel_rays(cam: Camera):
+    w, h = cam.width, cam.height
+    xs = (np.arange(w) + 0.5) / w * 2 - 1
+    ys = (np.arange(h) + 0.5) / h * 2 - 1
+    near, far = ndc_rays(cam, np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2))
     return near, far - near
 
 

@@ -46,12 +46,8 @@ def ground_hits(cam, width, height, sub=1):
     offs = (np.arange(sub) + 0.5) / sub
     xs = (np.arange(width)[:, None] + offs[None, :]).ravel() / width * 2 - 1
     ys = (np.arange(height)[:, None] + offs[None, :]).ravel() / height * 2 - 1
-    ndc = np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2)
-    inv = np.linalg.inv(cam.projection @ cam.view)
-    n = len(ndc)
-    near = np.c_[ndc, -np.ones(n), np.ones(n)] @ inv.T
-    far = np.c_[ndc, np.ones(n), np.ones(n)] @ inv.T
-    near, far = near[:, :3] / near[:, 3:], far[:, :3] / far[:, 3:]
+    from ..stress import ndc_rays
+    near, far = ndc_rays(cam, np.stack(np.meshgrid(xs, ys), -1).reshape(-1, 2))
     t = near[:, 2] / (near[:, 2] - far[:, 2])
     pts = (near + (far - near) * t[:, None]).reshape(height, sub, width, sub, 3)
     return pts.transpose(0, 2, 1, 3, 4).reshape(height, width, sub * sub, 3)
