@@ -507,8 +507,9 @@ def test_ctrl_c_during_cycles_stops_compare_with_status_130(tmp_path):
     import signal
     import time
     env = {**os.environ, "PENUMBRA_CACHE": str(tmp_path / "cache"), "TMPDIR": str(tmp_path)}
+    # 16000 samples: each Cycles render of the pair lasts seconds, so the signal lands inside one of them.
     p = subprocess.Popen([sys.executable, "-m", "penumbra", "compare", "--scene", "plane", "--resolution", "32",
-                          "32", "--cycles-samples", "400", "--no-noise-floor"], cwd=tmp_path, env=env,
+                          "32", "--cycles-samples", "16000", "--no-noise-floor"], cwd=tmp_path, env=env,
                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     start = time.monotonic()
     while not glob.glob(str(tmp_path / "penumbra_ref_*")) and time.monotonic() - start < 120:
