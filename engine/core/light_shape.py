@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from .shading import SUN_MAX_HALF
 from .snapshot import AREA, SUN, Light
 
 
@@ -31,12 +34,10 @@ def light_half_extent(light: Light, face=None) -> tuple[float, float]:
             return half
         # A side face sees the area light at an angle: its extent projected onto the face's plane (kept above
         # 5 % of the light's size, so kernels built on it never collapse).
-        import numpy as np
         corners = np.array([[sx * half[0], sy * half[1], 0.0] for sx in (-1, 1) for sy in (-1, 1)])
         projected = np.max(np.abs(corners @ np.asarray(face, float).T)[:, :2], axis=0)
         return tuple(float(v) for v in np.maximum(projected, 0.05 * max(half)))
     if light.kind == SUN:
-        from .shading import SUN_MAX_HALF
         t = math.tan(min(light.angle / 2.0, SUN_MAX_HALF))      # finite up to a 180° sun
         return (t, t)
     return (light.radius, light.radius)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .snapshot import AREA, POINT, SPOT, SUN, Light
+from .light_shape import penumbra_spread
 from .matrices import mat_uniform
 
 MAX_HALF_ANGLE = np.radians(80.0)   # a single perspective map cannot cover a hemisphere; beyond this it clamps
@@ -102,8 +103,8 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     `split_faces`) make the view one face of a light seen through several views.
     """
     r_lo, r_hi = (np.asarray(v, float) for v in receivers)
-    light_to_world = light_frame(light, (r_lo + r_hi) / 2.0) if frame is None else np.asarray(frame, float)
-    world_to_local = light_to_world
+    world_to_light = light_frame(light, (r_lo + r_hi) / 2.0) if frame is None else np.asarray(frame, float)
+    world_to_local = world_to_light
     extent = light_extent_local(light)
     if origin_local is not None:
         shift = np.eye(4)
@@ -128,7 +129,7 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
         r_depth, c_depth = -rec[:, 2], -cas[:, 2]
         win_r = _bounds(rec[:, :2])
         win_c = _bounds(cas[:, :2])
-        grow = half * max(r_depth.max() - c_depth.min(), 0.0)      # tan(angle/2) · depth gap
+        grow = half * max(penumbra_spread(c_depth.min(), r_depth.max(), True), 0.0)   # tan(angle/2) · depth gap
         limit = np.inf
     else:
         near_floor = 1e-5 * extent
@@ -136,7 +137,7 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
         win_r, r_depth = _tangent_window(rec, near_floor)
         win_c, c_depth = _tangent_window(cas, near_floor)
         z_c = max(c_depth.min(), near_floor)
-        grow = half * max(1.0 / z_c - 1.0 / max(r_depth.max(), z_c), 0.0)   # h · (1/z_occ − 1/z_rec)
+        grow = half * max(penumbra_spread(z_c, max(r_depth.max(), z_c), False), 0.0)   # h · (1/z_occ − 1/z_rec)
     shadowable = _intersect(win_r, _widen(win_c, grow))
     occluders = _intersect(_widen(shadowable, grow), win_c)
     window = _union(shadowable, occluders)
@@ -162,7 +163,7 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     proj = ortho(window, near, far) if is_sun else frustum(window, near, far)
     return LightView(world_to_local, proj, width, height, float(near), float(far), is_sun,
                      tuple(float(v) for v in window), clamped,
-                     frame=None if face is None else light_to_world, face=None if face is None else np.asarray(face))
+                     frame=None if face is None else world_to_light, face=None if face is None else np.asarray(face))
 
 
 # The six faces of a cube around the light, as directions in the light's frame. Index = 2·axis + (positive).

@@ -121,12 +121,15 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         else:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
-                faces = lightview.split_faces(view, position[lit][:, :3])
+                faces = lit_xyz = None
+                if view.clamped:    # only a clamped view can leave lit pixels outside: copy them out then
+                    lit_xyz = position[lit][:, :3]
+                    faces = lightview.split_faces(view, lit_xyz)
             if faces is None:
                 rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
                                        stats, debug)
             else:
-                rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, position,
+                rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, lit_xyz,
                                        irradiance, object_bounds, caster_objects, visibility, stats, debug)
         with t.stage("accumulate"):
             frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
@@ -159,12 +162,17 @@ def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers
     stats["views"] = stats.get("views", 0) + 1
     if lc.stats:
         stats.setdefault("per_light", []).append({"light": light.name, **lc.stats})
-    for name, array in lc.debug.items():    # several lights or views: keep the per-pixel maximum
-        debug[name] = array if name not in debug else np.maximum(debug[name], array)
+    _keep_max(debug, lc.debug)
     return lc.visibility_rgb
 
 
-def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, faces, lit, position,
+def _keep_max(debug: dict, more: dict) -> None:
+    """Debug passes of several lights (or views): keep the per-pixel maximum."""
+    for name, array in more.items():
+        debug[name] = array if name not in debug else np.maximum(debug[name], array)
+
+
+def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, faces, lit, lit_xyz,
                      irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
     """A light whose lit pixels do not fit one view: its single view for the pixels it holds, and one view per
     cube face for the rest (see lightview.split_faces), each fitted to the receivers it owns, with its own
@@ -175,28 +183,27 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
     owner_tex, face_out = frame.texture(size, 1), frame.texture(size, 1)
     merged_rgb, rgb_seen = frame.texture(size, 4), False
     face_debug: dict = {}
-    lit_xyz = position[lit][:, :3]
     lit_index = np.flatnonzero(lit.ravel())          # the order of position[lit], which the masks follow
     for index, (_, mask) in enumerate(faces):
         owner.reshape(-1)[lit_index[mask]] = index
     owner_tex.write(owner.tobytes())
     for index, (rotation, mask) in enumerate(faces):
-        pts = lit_xyz[mask].astype(np.float64)
         rgb, casters = None, None
         if rotation is None:                    # the light's single view keeps the pixels it holds
             receivers, casters, face_view = view_receivers, view_casters, view
         else:
+            pts = lit_xyz[mask].astype(np.float64)
             receivers = (pts.min(axis=0), pts.max(axis=0))
             if light.casts_shadow and frame.geometry.has_casters:
                 casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers)
-        if rotation is not None and casters is not None:
-            with t.stage("light_view"):
-                face_view = lightview.fit(light, receivers, casters, frame.settings.shadow_map_size,
-                                          frame=view.view, face=rotation)
+            if casters is not None:
+                with t.stage("light_view"):
+                    face_view = lightview.fit(light, receivers, casters, frame.settings.shadow_map_size,
+                                              frame=view.view, face=rotation)
+                if lightview.outside_view(face_view, pts).any():
+                    frame.warn(f"Light '{light.name}': some pixels fall outside its cube-face views "
+                               "(please report this scene).")
         if casters is not None:
-            if rotation is not None and lightview.outside_view(face_view, pts).any():
-                frame.warn(f"Light '{light.name}': some pixels fall outside its cube-face views "
-                           "(please report this scene).")
             view_debug: dict = {}
             rgb = _view_visibility(frame, technique, light, face_view, irradiance, receivers, casters, face_out,
                                    stats, view_debug)
@@ -211,8 +218,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                            samplers={"u_owner": owner_tex, "u_view_visibility": face_out,
                                      "u_view_rgb": rgb if rgb is not None else face_out},
                            images={0: out, 1: merged_rgb})
-    for name, array in face_debug.items():
-        debug[name] = array if name not in debug else np.maximum(debug[name], array)
+    _keep_max(debug, face_debug)
     stats["lights_split"] = stats.get("lights_split", 0) + 1
     return merged_rgb if rgb_seen else None
 
