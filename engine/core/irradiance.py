@@ -184,21 +184,76 @@ def _disk_frame(axis: np.ndarray):
     return t, np.cross(axis, t)
 
 
-def _disk_cell_centres(centre, radius, axis, rings: int, sectors: int) -> np.ndarray:
-    """(N, rings·sectors, 3) centres of equal-area cells (rings × sectors) of the disk."""
+def _disk_cell_centres(centre, radius, axis, x, rings: int, sectors: int) -> np.ndarray:
+    """(N, rings·sectors, 3) centres of cells of the disk (facing x) that subtend equal solid angles from x:
+    the share inside radius r is (1 − D/√(D² + r²)) / (1 − D/√(D² + ρ²)) at distance D."""
     t, b = _disk_frame(axis)
-    edges = np.sqrt(np.linspace(0.0, 1.0, rings + 1))
-    rad = np.sqrt(0.5 * (edges[:-1] ** 2 + edges[1:] ** 2))  # splits each ring's area in half
+    D = np.linalg.norm(centre - x, axis=-1)
+    whole = 1.0 - D / np.sqrt(D * D + radius * radius)
+    k = 1.0 - whole[:, None] * ((np.arange(rings) + 0.5) / rings)[None, :]      # D/√(D² + r²) per ring
+    rad = D[:, None] * np.sqrt(np.maximum(1.0 / (k * k) - 1.0, 0.0))               # (N, rings)
     phi = 2.0 * np.pi * (np.arange(sectors) + 0.5) / sectors
-    u = (rad[:, None] * np.cos(phi)[None, :]).reshape(-1)
-    v = (rad[:, None] * np.sin(phi)[None, :]).reshape(-1)
-    return centre[:, None, :] + radius[:, None, None] * (u[None, :, None] * t[:, None, :]
-                                                         + v[None, :, None] * b[:, None, :])
+    u = (rad[:, :, None] * np.cos(phi)[None, None, :]).reshape(len(D), -1)
+    v = (rad[:, :, None] * np.sin(phi)[None, None, :]).reshape(len(D), -1)
+    return centre[:, None, :] + u[..., None] * t[:, None, :] + v[..., None] * b[:, None, :]
 
 
-# Spot lights with a radius: the cone attenuation is evaluated per ray in Cycles, so it is averaged
-# over the emitter (disk split into SPOT_RINGS × SPOT_SECTORS equal-area cells).
+def spot_tan_wide(light: Light) -> float:
+    """tan of the spot cone's widest half angle in world space: the object scale stretches the cone by
+    scale_x/scale_z and scale_y/scale_z (as Cycles' "larger spread")."""
+    s = np.maximum(np.abs(np.asarray(light.spot_scale, np.float64)), _EPS)
+    return float(np.tan(0.5 * light.spot_size) * max(s[0], s[1]) / s[2])
+
+
+# Spot lights with a radius: the cone attenuation is evaluated per ray in Cycles, so it is integrated over
+# the emitter: through the cone's footprint on the disk's plane where that ellipse is smaller than the disk
+# (SPOT_FOOT_RINGS × SPOT_FOOT_SECTORS equal-area cells), otherwise as a mean over SPOT_RINGS × SPOT_SECTORS
+# cells of equal solid angle times the disk's exact form factor.
 SPOT_RINGS, SPOT_SECTORS = 4, 16
+SPOT_FOOT_RINGS, SPOT_FOOT_SECTORS = 12, 24
+
+
+def _spot_footprint(light: Light, centre, rr, x, n) -> np.ndarray:
+    """E/L (N,) integrated over the ellipse where the plane of the disk (centre, radius rr, facing x) meets
+    the cone of the rays that reach x inside the spot's widest half angle; NaN where that cut is unbounded
+    or wider than the disk (glsl/shading/irradiance.glsl spot_footprint is the same construction)."""
+    c = centre - x
+    H = np.maximum(np.linalg.norm(c, axis=-1), _EPS)
+    normal = c / H[:, None]
+    back = light.matrix[:3, 2] / max(np.linalg.norm(light.matrix[:3, 2]), _EPS)   # -(emission direction)
+    cos_g = normal @ back
+    beta = np.arctan(spot_tan_wide(light))
+    gamma = np.arccos(np.clip(cos_g, -1.0, 1.0))
+    out = np.full(len(H), np.nan)
+    ok = (cos_g > 0.0) & (gamma + beta < 1.53)
+    far, near = np.tan(np.minimum(gamma + beta, 1.53)), np.tan(gamma - beta)
+    a = 0.5 * H * (far - near)
+    b = H * np.sin(beta) / np.sqrt(np.maximum(np.cos(gamma + beta) * np.cos(gamma - beta), _EPS))
+    ok &= a * b < rr * rr
+    if not ok.any():
+        return out
+    c, H, normal, cos_g, a, b, far, near, x_, n_, rr_ = (v[ok] for v in (c, H, normal, cos_g, a, b, far, near,
+                                                                          x, n, rr))
+    tilt = back[None, :] - normal * cos_g[:, None]
+    tl = np.linalg.norm(tilt, axis=-1)
+    helper, _ = _disk_frame(normal)
+    tilt = np.where(tl[:, None] > 1e-6, tilt / np.maximum(tl, _EPS)[:, None], helper)
+    side = np.cross(normal, tilt)
+    mid = c + tilt * (0.5 * H * (far + near))[:, None]
+    r = np.sqrt((np.arange(SPOT_FOOT_RINGS) + 0.5) / SPOT_FOOT_RINGS)
+    phi = 2.0 * np.pi * (np.arange(SPOT_FOOT_SECTORS) + 0.5) / SPOT_FOOT_SECTORS
+    cu = (r[:, None] * np.cos(phi)[None, :]).reshape(-1)
+    cv = (r[:, None] * np.sin(phi)[None, :]).reshape(-1)
+    p = (mid[:, None, :] + (a[:, None] * cu[None, :])[..., None] * tilt[:, None, :]
+         + (b[:, None] * cv[None, :])[..., None] * side[:, None, :])                 # (M, C, 3) from x
+    inside = np.sum((p - c[:, None, :]) ** 2, axis=-1) <= (rr_ * rr_)[:, None]
+    d2 = np.maximum(np.sum(p * p, axis=-1), _EPS)
+    w = p / np.sqrt(d2)[..., None]
+    att = spot_attenuation(light, -w.reshape(-1, 3)).reshape(d2.shape)
+    f = (np.maximum(np.einsum("mcj,mj->mc", w, n_), 0.0) * np.einsum("mcj,mj->mc", w, normal) / d2 * att)
+    cell = np.pi * a * b / (SPOT_FOOT_RINGS * SPOT_FOOT_SECTORS)
+    out[ok] = np.sum(np.where(inside, f, 0.0), axis=1) * cell
+    return out
 
 
 def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -239,15 +294,16 @@ def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
         # Cycles evaluates the cone per ray (direction from the emitter sample towards x, no cosine),
         # so average the attenuation over equal-area cells of the disk, weighted by each cell's
         # point-approximated form factor cos_x·cos_disk/dist², times the exact disk form factor.
-        cells = _disk_cell_centres(centre, rr, axis, SPOT_RINGS, SPOT_SECTORS)  # (N, C, 3)
+        cells = _disk_cell_centres(centre, rr, axis, x, SPOT_RINGS, SPOT_SECTORS)  # (N, C, 3)
         q = cells - x[:, None, :]
         q2 = np.maximum(np.sum(q * q, axis=-1), _EPS)
         qn = q / np.sqrt(q2)[..., None]
-        w = (np.maximum(np.einsum("ncj,nj->nc", qn, n), 0.0)
-             * np.maximum(np.einsum("ncj,nj->nc", qn, axis), 0.0) / q2)
+        w = np.maximum(np.einsum("ncj,nj->nc", qn, n), 0.0)     # the cells hold equal solid angles
         att = spot_attenuation(light, -qn.reshape(-1, 3)).reshape(q2.shape)
         mean_att = np.sum(w * att, axis=1) / np.maximum(np.sum(w, axis=1), _EPS)
         ff = polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n) * mean_att
+        foot = _spot_footprint(light, centre, rr, x, n)
+        ff = np.where(np.isnan(foot), ff, foot)
     e = radiance * ff
     # inside a true sphere the whole hemisphere has radiance L, and Cycles skips the spot cone
     return np.where(inside, radiance * np.pi, e)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .irradiance import spot_tan_wide
 from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 
 LIGHT_POLYGON, LIGHT_SPHERE, LIGHT_POINT, LIGHT_SUN = 0, 1, 2, 3
@@ -44,6 +45,7 @@ def _light_values(light: Light) -> dict:
         "u_center": tuple(pos), "u_emit_dir": tuple(-z_axis), "u_axis_u": (0.0, 0.0, 0.0),
         "u_axis_v": (0.0, 0.0, 0.0), "u_radius": 0.0, "u_one_sided": 0,
         "u_spot_to_local": tuple(np.eye(3).ravel()), "u_spot_cos_half": -1.0, "u_spot_smooth": 0.0,
+        "u_spot_tan_wide": 0.0,
         "u_soft_falloff": int(light.use_soft_falloff),
     }
     if light.kind == AREA and not light.is_delta:
@@ -71,5 +73,5 @@ def _light_values(light: Light) -> dict:
         scale = np.asarray(light.spot_scale, float)
         to_local = np.diag(1.0 / np.maximum(np.abs(scale), 1e-12)) @ m[:3, :3].T
         u.update(u_spot_cos_half=cos_half, u_spot_smooth=float((1.0 - cos_half) * light.spot_blend),
-                 u_spot_to_local=tuple(to_local.T.ravel()))
+                 u_spot_to_local=tuple(to_local.T.ravel()), u_spot_tan_wide=spot_tan_wide(light))
     return u

@@ -122,19 +122,67 @@ float spot_attenuation(vec3 d) {
     return 1.0;
 }
 
-// Cycles applies the cone per ray, so a spot with a radius averages it over its disk: 32 equal-area
-// cells, each weighted by its unoccluded contribution cosθ_x · cosθ_disk / d².
+// Cycles applies the cone per ray (the direction from the emitter point towards x), so a spot with a radius
+// lights x from the part of its disk whose rays fall inside the cone. Two quadratures of E/L = ∫ cosθ_x ·
+// cosθ_disk / d² · spot dA over the disk (centre `center` relative to x, facing x, radius |u|):
+//  * the cone's footprint: the rays that reach x inside the cone leave the disk's plane within an ellipse
+//    (the plane cut by the cone of half angle u_spot_tan_wide around -u_emit_dir with its apex at x). When
+//    that ellipse is smaller than the disk (a wide spot close to its receivers), 72 equal-area cells of the
+//    ellipse, clipped to the disk, carry the integral; cells over the whole disk would miss it;
+//  * otherwise the disk: 32 cells of equal solid angle seen from x, whose attenuation-weighted mean scales
+//    the disk's exact form factor.
+const int SPOT_FOOT_RINGS = 6, SPOT_FOOT_SECTORS = 12;
+uniform float u_spot_tan_wide;     // tan of the cone's widest half angle (the object scale widens one axis)
+
+// E/L through the footprint ellipse, or -1 when the footprint is unbounded or wider than the disk.
+float spot_footprint(vec3 center, float rho, vec3 n) {
+    float H = length(center);
+    vec3 normal = center / H;                       // the disk's plane, at distance H from x
+    vec3 back = -u_emit_dir;                        // from x back towards where in-cone rays come from
+    float cos_g = dot(back, normal);
+    float beta = atan(u_spot_tan_wide);
+    float gamma = acos(clamp(cos_g, -1.0, 1.0));
+    if (cos_g <= 0.0 || gamma + beta >= 1.53) return -1.0;     // the cut is (nearly) a parabola or worse
+    float far = tan(gamma + beta), near = tan(gamma - beta);
+    float a = 0.5 * H * (far - near);
+    float b = H * sin(beta) / sqrt(cos(gamma + beta) * cos(gamma - beta));
+    if (a * b >= rho * rho) return -1.0;
+    vec3 tilt = back - normal * cos_g;
+    tilt = dot(tilt, tilt) > 1e-12 ? normalize(tilt) : orthogonal(normal);
+    vec3 side = cross(normal, tilt);
+    vec3 mid = center + tilt * (0.5 * H * (far + near));
+    float cell = 3.14159265359 * a * b / float(SPOT_FOOT_RINGS * SPOT_FOOT_SECTORS);
+    float sum = 0.0;
+    for (int ring = 0; ring < SPOT_FOOT_RINGS; ++ring) {
+        float r = sqrt((float(ring) + 0.5) / float(SPOT_FOOT_RINGS));
+        for (int sector = 0; sector < SPOT_FOOT_SECTORS; ++sector) {
+            float phi = 6.28318530718 * (float(sector) + 0.5 * float(ring & 1)) / float(SPOT_FOOT_SECTORS);
+            vec3 p = mid + r * (a * cos(phi) * tilt + b * sin(phi) * side);
+            vec3 off = p - center;
+            if (dot(off, off) > rho * rho) continue;
+            float d2 = max(dot(p, p), 1e-30);
+            vec3 w = p * inversesqrt(d2);
+            sum += max(dot(n, w), 0.0) * dot(w, normal) / d2 * spot_attenuation(-p);
+        }
+    }
+    return sum * cell;
+}
+
+// Attenuation-weighted mean over the disk: cells of equal solid angle (the share of the disk's solid angle
+// inside radius r is (1 − D/√(D² + r²)) / (1 − D/√(D² + ρ²))), weighted by the receiver's cosine.
 float spot_over_disk(vec3 center, vec3 u, vec3 v, vec3 n) {
-    vec3 axis = normalize(center);
+    float D = length(center);
+    float rho = length(u);
+    float whole = 1.0 - D * inversesqrt(D * D + rho * rho);
+    vec3 eu = u / rho, ev = v / rho;
     float sum = 0.0, weight = 0.0;
     for (int ring = 0; ring < 4; ++ring) {
-        float r = sqrt((float(ring) + 0.5) / 4.0);
+        float k = 1.0 - whole * (float(ring) + 0.5) / 4.0;         // D/√(D² + r²) of this ring
+        float r = D * sqrt(max(1.0 / (k * k) - 1.0, 0.0));
         for (int sector = 0; sector < 8; ++sector) {
             float phi = 6.28318530718 * (float(sector) + 0.5 * float(ring & 1)) / 8.0;
-            vec3 p = center + r * (cos(phi) * u + sin(phi) * v);
-            float d2 = max(dot(p, p), 1e-30);
-            vec3 w_dir = p * inversesqrt(d2);
-            float w = max(dot(n, w_dir), 0.0) * max(dot(axis, w_dir), 0.0) / d2;
+            vec3 p = center + r * (cos(phi) * eu + sin(phi) * ev);
+            float w = max(dot(n, normalize(p)), 0.0);
             sum += w * spot_attenuation(-p);
             weight += w;
         }
@@ -210,6 +258,10 @@ vec3 light_irradiance(vec3 x, vec3 n) {
     }
     vec3 u = orthogonal(dir) * rho;
     vec3 v = cross(dir, u);
+    if (LIGHT_SPOT == 1) {
+        float through_footprint = spot_footprint(center, rho, n);
+        if (through_footprint >= 0.0) return u_radiance * through_footprint;
+    }
     float spot = LIGHT_SPOT == 1 ? spot_over_disk(center, u, v, n) : 1.0;
     if (spot <= 0.0) return vec3(0.0);
     return u_radiance * spot * (0.5 * clipped_polygon_sum(center, u, v, 32, n));
