@@ -17,7 +17,9 @@ Conventions, all measured against Cycles 5.0 (see tests/test_irradiance_cycles.p
   POINT  r = 0: I = P / (4π) W/sr, E = I·cosθ / d².  r > 0: emitter radiance L = P / (π · 4πr²)
          (so I = P/(4π) far away). The radius is NOT scaled by the object scale.
   SPOT   as POINT, times the cone attenuation of `spot_attenuation` (no extra cosine); with r > 0
-         Cycles evaluates the cone per ray, so it is averaged over the emitter here.
+         Cycles evaluates the cone per ray, so it is integrated over the emitter here (over the cone's
+         footprint on the emitter when that is small). Inside a true sphere: no cone, and E = πL(3 + cosθ)/4
+         (only BSDF rays heading to the centre hit a spot's sphere; see `_sphere_light`).
   SUN    angle 0: E = S·cosθ.  angle α > 0: a cone of directions of half angle β = α/2 with
          L = S / (π sin²β), i.e. E = S when facing the sun (closed form of the clipped cone,
          `cap_form_factor`, exact up to α = 180°).
@@ -206,52 +208,53 @@ def spot_tan_wide(light: Light) -> float:
 
 
 # Spot lights with a radius: the cone attenuation is evaluated per ray in Cycles, so it is integrated over
-# the emitter: through the cone's footprint on the disk's plane where that ellipse is smaller than the disk
-# (SPOT_FOOT_RINGS × SPOT_FOOT_SECTORS equal-area cells), otherwise as a mean over SPOT_RINGS × SPOT_SECTORS
+# the emitter: through a SPOT_GRID × SPOT_GRID grid of the cone's footprint on the disk's plane where that
+# footprint's box (clipped to the disk) is smaller than r², otherwise as a mean over SPOT_RINGS × SPOT_SECTORS
 # cells of equal solid angle times the disk's exact form factor.
 SPOT_RINGS, SPOT_SECTORS = 4, 16
-SPOT_FOOT_RINGS, SPOT_FOOT_SECTORS = 12, 24
+SPOT_GRID = 24
 
 
 def _spot_footprint(light: Light, centre, rr, x, n) -> np.ndarray:
-    """E/L (N,) integrated over the ellipse where the plane of the disk (centre, radius rr, facing x) meets
-    the cone of the rays that reach x inside the spot's widest half angle; NaN where that cut is unbounded
-    or wider than the disk (glsl/shading/irradiance.glsl spot_footprint is the same construction)."""
+    """E/L (N,) integrated over the box, clipped to the disk (centre, radius rr, facing x), that bounds the cut
+    of the disk's plane by the cone of the rays reaching x inside the spot's widest half angle; NaN where the
+    box is too large for it to pay (glsl/shading/irradiance.glsl spot_footprint is the same construction)."""
     c = centre - x
     H = np.maximum(np.linalg.norm(c, axis=-1), _EPS)
     normal = c / H[:, None]
     back = light.matrix[:3, 2] / max(np.linalg.norm(light.matrix[:3, 2]), _EPS)   # -(emission direction)
     cos_g = normal @ back
-    beta = np.arctan(spot_tan_wide(light))
+    beta = float(np.arctan(spot_tan_wide(light)))
     gamma = np.arccos(np.clip(cos_g, -1.0, 1.0))
-    out = np.full(len(H), np.nan)
-    ok = (cos_g > 0.0) & (gamma + beta < 1.53)
-    far, near = np.tan(np.minimum(gamma + beta, 1.53)), np.tan(gamma - beta)
-    a = 0.5 * H * (far - near)
-    b = H * np.sin(beta) / np.sqrt(np.maximum(np.cos(gamma + beta) * np.cos(gamma - beta), _EPS))
-    ok &= a * b < rr * rr
+    bounded = gamma + beta < 1.55
+    g_far = np.minimum(gamma + beta, 1.55)
+    t0 = np.maximum(H * np.tan(np.maximum(gamma - beta, -1.55)), -rr)
+    t1 = np.where(bounded, np.minimum(H * np.tan(g_far), rr), rr)
+    half_s = np.where(bounded, np.minimum(H * np.sin(beta) / np.sqrt(np.maximum(
+        np.cos(g_far) * np.cos(gamma - beta), _EPS)), rr), rr)
+    away = (gamma - beta >= 1.5707) | (t1 <= t0)
+    out = np.where(away, 0.0, np.nan)
+    ok = ~away & ((t1 - t0) * 2.0 * half_s < rr * rr)
     if not ok.any():
         return out
-    c, H, normal, cos_g, a, b, far, near, x_, n_, rr_ = (v[ok] for v in (c, H, normal, cos_g, a, b, far, near,
-                                                                          x, n, rr))
+    c, normal, cos_g, t0, t1, half_s, n_, rr_ = (v[ok] for v in (c, normal, cos_g, t0, t1, half_s, n, rr))
     tilt = back[None, :] - normal * cos_g[:, None]
     tl = np.linalg.norm(tilt, axis=-1)
     helper, _ = _disk_frame(normal)
     tilt = np.where(tl[:, None] > 1e-6, tilt / np.maximum(tl, _EPS)[:, None], helper)
     side = np.cross(normal, tilt)
-    mid = c + tilt * (0.5 * H * (far + near))[:, None]
-    r = np.sqrt((np.arange(SPOT_FOOT_RINGS) + 0.5) / SPOT_FOOT_RINGS)
-    phi = 2.0 * np.pi * (np.arange(SPOT_FOOT_SECTORS) + 0.5) / SPOT_FOOT_SECTORS
-    cu = (r[:, None] * np.cos(phi)[None, :]).reshape(-1)
-    cv = (r[:, None] * np.sin(phi)[None, :]).reshape(-1)
-    p = (mid[:, None, :] + (a[:, None] * cu[None, :])[..., None] * tilt[:, None, :]
-         + (b[:, None] * cv[None, :])[..., None] * side[:, None, :])                 # (M, C, 3) from x
-    inside = np.sum((p - c[:, None, :]) ** 2, axis=-1) <= (rr_ * rr_)[:, None]
+    g = (np.arange(SPOT_GRID) + 0.5) / SPOT_GRID
+    gt = t0[:, None] + (t1 - t0)[:, None] * g[None, :]                  # (M, G)
+    gs = half_s[:, None] * (2.0 * g[None, :] - 1.0)
+    tt = np.repeat(gt, SPOT_GRID, axis=1)                               # (M, G·G)
+    ss = np.tile(gs, (1, SPOT_GRID))
+    p = c[:, None, :] + tt[..., None] * tilt[:, None, :] + ss[..., None] * side[:, None, :]
+    inside = tt * tt + ss * ss <= (rr_ * rr_)[:, None]
     d2 = np.maximum(np.sum(p * p, axis=-1), _EPS)
     w = p / np.sqrt(d2)[..., None]
     att = spot_attenuation(light, -w.reshape(-1, 3)).reshape(d2.shape)
-    f = (np.maximum(np.einsum("mcj,mj->mc", w, n_), 0.0) * np.einsum("mcj,mj->mc", w, normal) / d2 * att)
-    cell = np.pi * a * b / (SPOT_FOOT_RINGS * SPOT_FOOT_SECTORS)
+    f = np.maximum(np.einsum("mcj,mj->mc", w, n_), 0.0) * np.einsum("mcj,mj->mc", w, normal) / d2 * att
+    cell = (t1 - t0) * 2.0 * half_s / SPOT_GRID ** 2
     out[ok] = np.sum(np.where(inside, f, 0.0), axis=1) * cell
     return out
 
@@ -305,8 +308,13 @@ def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
         foot = _spot_footprint(light, centre, rr, x, n)
         ff = np.where(np.isnan(foot), ff, foot)
     e = radiance * ff
-    # inside a true sphere the whole hemisphere has radiance L, and Cycles skips the spot cone
-    return np.where(inside, radiance * np.pi, e)
+    # inside a true sphere the whole hemisphere has radiance L, and Cycles skips the spot cone; a spot's
+    # sphere is one-sided for BSDF rays (only those heading to its centre hit it), so with MIS Cycles keeps
+    # (3 + cosθ)/4 of it, θ between the normal and the direction to the centre
+    inside_e = radiance * np.pi
+    if is_spot:
+        inside_e = inside_e * (0.75 + 0.25 * np.sum(axis * n, axis=-1))
+    return np.where(inside, inside_e, e)
 
 
 def irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:

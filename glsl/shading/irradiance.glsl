@@ -123,18 +123,19 @@ float spot_attenuation(vec3 d) {
 }
 
 // Cycles applies the cone per ray (the direction from the emitter point towards x), so a spot with a radius
-// lights x from the part of its disk whose rays fall inside the cone. Two quadratures of E/L = ∫ cosθ_x ·
-// cosθ_disk / d² · spot dA over the disk (centre `center` relative to x, facing x, radius |u|):
-//  * the cone's footprint: the rays that reach x inside the cone leave the disk's plane within an ellipse
-//    (the plane cut by the cone of half angle u_spot_tan_wide around -u_emit_dir with its apex at x). When
-//    that ellipse is smaller than the disk (a wide spot close to its receivers), 72 equal-area cells of the
-//    ellipse, clipped to the disk, carry the integral; cells over the whole disk would miss it;
+// lights x only from the part of its disk whose rays fall inside the cone. Two quadratures of
+// E/L = ∫ cosθ_x · cosθ_disk / d² · spot dA over the disk (centre `center` relative to x, facing x, radius ρ):
+//  * the cone's footprint: rays that reach x inside the cone leave the disk's plane inside the cut of the
+//    plane by the cone of half angle β = atan(u_spot_tan_wide) around -u_emit_dir with its apex at x (an
+//    ellipse, or an unbounded conic). Where the cut's bounding box clipped to the disk's is smaller than ρ²
+//    (a narrow spot whose disk is wide against its distance), a 12 × 12 grid of that box carries the integral;
+//    cells over the whole disk would miss the footprint;
 //  * otherwise the disk: 32 cells of equal solid angle seen from x, whose attenuation-weighted mean scales
 //    the disk's exact form factor.
-const int SPOT_FOOT_RINGS = 6, SPOT_FOOT_SECTORS = 12;
+const int SPOT_GRID_T = 12, SPOT_GRID_S = 12;
 uniform float u_spot_tan_wide;     // tan of the cone's widest half angle (the object scale widens one axis)
 
-// E/L through the footprint ellipse, or -1 when the footprint is unbounded or wider than the disk.
+// E/L through the cone's footprint, or -1 where the footprint covers too much of the disk for it to pay.
 float spot_footprint(vec3 center, float rho, vec3 n) {
     float H = length(center);
     vec3 normal = center / H;                       // the disk's plane, at distance H from x
@@ -142,30 +143,30 @@ float spot_footprint(vec3 center, float rho, vec3 n) {
     float cos_g = dot(back, normal);
     float beta = atan(u_spot_tan_wide);
     float gamma = acos(clamp(cos_g, -1.0, 1.0));
-    if (cos_g <= 0.0 || gamma + beta >= 1.53) return -1.0;     // the cut is (nearly) a parabola or worse
-    float far = tan(gamma + beta), near = tan(gamma - beta);
-    float a = 0.5 * H * (far - near);
-    float b = H * sin(beta) / sqrt(cos(gamma + beta) * cos(gamma - beta));
-    if (a * b >= rho * rho) return -1.0;
+    if (gamma - beta >= 1.5707) return 0.0;         // the cone turns away from the plane
+    bool bounded = gamma + beta < 1.55;
+    float t0 = max(H * tan(max(gamma - beta, -1.55)), -rho);
+    float t1 = bounded ? min(H * tan(gamma + beta), rho) : rho;
+    float half_s = bounded ? min(H * sin(beta) / sqrt(cos(gamma + beta) * cos(gamma - beta)), rho) : rho;
+    if (t1 <= t0) return 0.0;
+    if ((t1 - t0) * 2.0 * half_s >= rho * rho) return -1.0;
     vec3 tilt = back - normal * cos_g;
     tilt = dot(tilt, tilt) > 1e-12 ? normalize(tilt) : orthogonal(normal);
     vec3 side = cross(normal, tilt);
-    vec3 mid = center + tilt * (0.5 * H * (far + near));
-    float cell = 3.14159265359 * a * b / float(SPOT_FOOT_RINGS * SPOT_FOOT_SECTORS);
+    float dt = (t1 - t0) / float(SPOT_GRID_T), ds = 2.0 * half_s / float(SPOT_GRID_S);
     float sum = 0.0;
-    for (int ring = 0; ring < SPOT_FOOT_RINGS; ++ring) {
-        float r = sqrt((float(ring) + 0.5) / float(SPOT_FOOT_RINGS));
-        for (int sector = 0; sector < SPOT_FOOT_SECTORS; ++sector) {
-            float phi = 6.28318530718 * (float(sector) + 0.5 * float(ring & 1)) / float(SPOT_FOOT_SECTORS);
-            vec3 p = mid + r * (a * cos(phi) * tilt + b * sin(phi) * side);
-            vec3 off = p - center;
-            if (dot(off, off) > rho * rho) continue;
+    for (int i = 0; i < SPOT_GRID_T; ++i) {
+        float t = t0 + (float(i) + 0.5) * dt;
+        for (int j = 0; j < SPOT_GRID_S; ++j) {
+            float sd = -half_s + (float(j) + 0.5) * ds;
+            if (t * t + sd * sd > rho * rho) continue;
+            vec3 p = center + t * tilt + sd * side;
             float d2 = max(dot(p, p), 1e-30);
             vec3 w = p * inversesqrt(d2);
             sum += max(dot(n, w), 0.0) * dot(w, normal) / d2 * spot_attenuation(-p);
         }
     }
-    return sum * cell;
+    return sum * dt * ds;
 }
 
 // Attenuation-weighted mean over the disk: cells of equal solid angle (the share of the disk's solid angle
@@ -244,7 +245,14 @@ vec3 light_irradiance(vec3 x, vec3 n) {
         rho = u_radius;
     } else {
         float d = length(to_light);
-        d = max(d, u_radius * 1.0001 + 1e-30);   // inside the sphere: clamp to its surface
+        // Inside a true sphere every direction of the hemisphere meets the emitter: E = π·L, with no spot
+        // cone (Cycles kernel/light/spot.h). A spot's sphere, though, is hit only by rays heading towards
+        // its centre (spot_light_intersect is one-sided), so Cycles' MIS keeps half of the light samples'
+        // share plus half of the BSDF rays' share, (1 + cosθ)/2 of the hemisphere: E = π·L·(3 + cosθ)/4.
+        if (d <= u_radius) {
+            float cos_c = d > 0.0 ? dot(n, to_light) / d : 1.0;
+            return u_radiance * (3.14159265359 * (LIGHT_SPOT == 1 ? 0.75 + 0.25 * cos_c : 1.0));
+        }
         dir = to_light / max(length(to_light), 1e-30);
         float r2 = u_radius * u_radius;
         center = dir * ((d * d - r2) / d);       // tangency circle: centre and radius
