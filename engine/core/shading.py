@@ -44,7 +44,6 @@ def _light_values(light: Light) -> dict:
     u = {
         "u_center": tuple(pos), "u_emit_dir": tuple(-z_axis), "u_axis_u": (0.0, 0.0, 0.0),
         "u_axis_v": (0.0, 0.0, 0.0), "u_radius": 0.0, "u_one_sided": 0,
-        "u_spot_to_local": tuple(np.eye(3).ravel()), "u_spot_cos_half": -1.0, "u_spot_smooth": 0.0,
         "u_spot_tan_wide": 0.0,
         "u_soft_falloff": int(light.use_soft_falloff),
     }
@@ -68,10 +67,16 @@ def _light_values(light: Light) -> dict:
         # A point light or a zero-radius spot; a zero-size area light emits nothing, as in Cycles.
         scale = 0.0 if light.kind == AREA else 1.0 / (4.0 * np.pi)
         u.update(u_shape=LIGHT_POINT, u_radiance=tuple(color * scale))
-    if light.kind == SPOT:
-        cos_half = float(np.cos(light.spot_size / 2.0))
-        scale = np.asarray(light.spot_scale, float)
-        to_local = np.diag(1.0 / np.maximum(np.abs(scale), 1e-12)) @ m[:3, :3].T
-        u.update(u_spot_cos_half=cos_half, u_spot_smooth=float((1.0 - cos_half) * light.spot_blend),
-                 u_spot_to_local=tuple(to_local.T.ravel()), u_spot_tan_wide=spot_tan_wide(light))
+    u.update(spot_uniforms(light))
     return u
+
+
+def spot_uniforms(light: Light) -> dict:
+    """Uniforms of glsl/common/spot.glsl (Cycles' cone) for this light; no cone (cos_half = -1) unless a spot."""
+    if light.kind != SPOT:
+        return {"u_spot_to_local": tuple(np.eye(3).ravel()), "u_spot_cos_half": -1.0, "u_spot_smooth": 0.0}
+    cos_half = float(np.cos(light.spot_size / 2.0))
+    scale = np.asarray(light.spot_scale, float)
+    to_local = np.diag(1.0 / np.maximum(np.abs(scale), 1e-12)) @ np.asarray(light.matrix, float)[:3, :3].T
+    return {"u_spot_cos_half": cos_half, "u_spot_smooth": float((1.0 - cos_half) * light.spot_blend),
+            "u_spot_to_local": tuple(to_local.T.ravel()), "u_spot_tan_wide": spot_tan_wide(light)}

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import lightview
+from ..core.shading import spot_uniforms
 from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE, WEIGHT_SUN
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN, Light
 from .base import MAP_SIZE_SWEEP, Option, Technique
@@ -92,6 +93,7 @@ class AveragedMaps(Technique):
         weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
+        spot = {k: v for k, v in spot_uniforms(light).items() if k != "u_spot_tan_wide"}
         for i, offset in enumerate(offsets):
             frame.progress.check()
             emit = light.direction
@@ -110,7 +112,7 @@ class AveragedMaps(Technique):
             with frame.timings.stage("visibility"):
                 frame.dispatch("averaged/accumulate.comp", {
                     **frame.bias_uniforms, **view.uniforms(), "u_sample_position": tuple(sample_world),
-                    "u_emit_dir": tuple(emit), "u_weight_mode": weight_mode},
+                    "u_emit_dir": tuple(emit), "u_weight_mode": weight_mode, **spot},
                     samplers={"g_irradiance": lc.irradiance, "u_depth_map": depth}, images={0: sums})
             frame.progress.step((i + 1) / len(offsets), f"{light.name}: sample {i + 1}/{len(offsets)}")
         frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})

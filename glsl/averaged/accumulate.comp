@@ -1,9 +1,11 @@
 // Averaged shadow maps (REFERENCE): adds one hard shadow map, rendered from one sample point of the light,
 // to running sums.
 // Each sample is weighted by its unoccluded contribution at the pixel (cosines over squared distance), so
-// the average converges to the irradiance-weighted visibility that Cycles' shadowed/unshadowed ratio gives.
+// the average converges to the irradiance-weighted visibility that Cycles' shadowed/unshadowed ratio gives;
+// a spot's samples also carry its cone.
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
+#include "common/spot.glsl"
 
 uniform sampler2D u_depth_map;
 uniform vec3 u_sample_position;   // world position of the sample (perspective views)
@@ -27,6 +29,9 @@ void main() {
         vec3 dir = to_sample * inversesqrt(d2);
         w = max(dot(texelFetch(g_normal, px, 0).xyz, dir), 0.0) / d2;
         if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-dir, u_emit_dir), 0.0);
+        // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
+        // spot's disk reaches p only from its footprint; see shading/irradiance.glsl).
+        if (u_spot_cos_half > -1.0) w *= spot_attenuation(-dir);
     }
     imageStore(u_sums, px, imageLoad(u_sums, px) + vec4(w * v, w, v, 1.0));
 }

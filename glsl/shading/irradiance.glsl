@@ -25,6 +25,8 @@ const int LIGHT_SUN = 3;       // sun: disk of directions, or S·cosθ when the 
 #ifndef LIGHT_SPOT
 #define LIGHT_SPOT 0
 #endif
+#include "common/spot.glsl"
+
 uniform vec3 u_center;         // light position (world)
 uniform vec3 u_axis_u;         // polygon half-extent along local X (world vector)
 uniform vec3 u_axis_v;         // polygon half-extent along local Y
@@ -33,9 +35,6 @@ uniform float u_radius;        // sphere radius, or tan(angle/2) for the sun
 uniform vec3 u_radiance;       // polygon/sphere/sun radiance, or point intensity (W/sr), RGB
 uniform int u_one_sided;       // area lights emit only towards u_emit_dir
 uniform int u_soft_falloff;    // sphere lights: disk facing x (1) or true sphere (0)
-uniform mat3 u_spot_to_local;  // world → spot-local with the object's scale folded in (Cycles' cone shape)
-uniform float u_spot_cos_half;
-uniform float u_spot_smooth;
 
 // One edge's term θ · n·(a×b)/|a×b|. θ/sinθ comes from the rational fit of Hill & Heitz ("Real-Time Area
 // Lighting: a Journey from Research to Production", SIGGRAPH 2016 course, §"integrating edges"): far
@@ -109,17 +108,6 @@ float clipped_polygon_sum(vec3 center, vec3 u, vec3 v, int sides, vec3 n) {
 
 vec3 orthogonal(vec3 d) {
     return abs(d.z) < 0.9 ? normalize(cross(d, vec3(0, 0, 1))) : normalize(cross(d, vec3(0, 1, 0)));
-}
-
-// Cycles' spot cone for a ray leaving the light along `d`: smoothstep over the blend band inside the
-// cone, measured in the spot frame divided by the object's scale (Cycles kernel/light/spot.h).
-float spot_attenuation(vec3 d) {
-    vec3 dir = normalize(u_spot_to_local * d);
-    float c = -dir.z;
-    if (c <= u_spot_cos_half) return 0.0;
-    float t = c - u_spot_cos_half;
-    if (u_spot_smooth > 0.0 && t < u_spot_smooth) return smoothstep(0.0, u_spot_smooth, t);
-    return 1.0;
 }
 
 // Cycles applies the cone per ray (the direction from the emitter point towards x), so a spot with a radius
