@@ -7,7 +7,7 @@ outside can change a visible pixel, so nothing outside is rendered. No bpy, no G
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -258,40 +258,93 @@ def _union(a, b) -> tuple:
     return (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3]))
 
 
+@dataclass
+class ReceiverSides:
+    """Where the pixels a light reaches lie against the scene's flat and convex objects (`receiver_sides`):
+    what `shadowing_caster_bounds` needs to leave out a caster that cannot shadow them."""
+    flat: dict = field(default_factory=dict)        # index → (normal, offset, lo, hi) of the signed distances
+    enclosing: dict = field(default_factory=dict)   # index → (normals, offsets): convex objects holding them all
+
+
+def receiver_sides(light: Light, flat: dict, convex: dict, xyz: np.ndarray, where: np.ndarray | None = None,
+                   max_work: float = 2e8) -> ReceiverSides:
+    """The receiver points `xyz` (…, 3), those selected by the boolean `where` (…) when given, against the
+    flat objects (SceneSnapshot.flat_objects) and the convex objects (SceneSnapshot.convex_objects) that hold
+    `light`; a convex object is tested only when its faces × the points stay under `max_work`."""
+    sides = ReceiverSides()
+    for index, (normal, offset) in flat.items():
+        d = xyz @ np.asarray(normal, xyz.dtype) - np.asarray(offset, xyz.dtype)
+        mask = True if where is None else where
+        lo, hi = float(d.min(initial=np.inf, where=mask)), float(d.max(initial=-np.inf, where=mask))
+        if lo <= hi:
+            sides.flat[index] = (normal, offset, lo, hi)
+    holding = {i: planes for i, planes in convex.items() if _light_inside(light, *planes)}
+    if holding:
+        pts = (xyz[where] if where is not None else xyz.reshape(-1, 3)).astype(np.float64)
+        scale = max(float(np.abs(pts).max(initial=0.0)), 1.0)
+        for index, (normals, offsets) in holding.items():
+            if normals.shape[0] * pts.shape[0] > max_work:
+                continue
+            chunks = np.array_split(pts, max(1, pts.shape[0] * normals.shape[0] // 4_000_000))
+            if max(float((c @ normals.T - offsets).max(initial=-np.inf)) for c in chunks) <= 1e-4 * scale:
+                sides.enclosing[index] = (normals, offsets)
+    return sides
+
+
 def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np.ndarray,
-                            receivers: tuple) -> tuple | None:
+                            receivers: tuple, sides: ReceiverSides | None = None) -> tuple | None:
     """World AABB of the caster objects that can shadow the lit receivers, or None.
 
-    An axis-aligned flat caster (a ground plane) shadows only what lies beyond its plane as seen from the
-    light; when no receiver does, it is left out, so a large floor does not stretch every light's map.
+    A flat caster (a ground plane at any tilt, a flattened object) shadows only what lies beyond its plane as
+    seen from the light. It is left out when no lit receiver does: when the receivers' bounds stay on the
+    light's side of an axis-aligned plane, or when the lit pixels do (`sides.flat`), so a large floor does not
+    stretch every light's map. A convex caster that holds the light and every lit pixel (`sides.enclosing`: a
+    room, a dome around the scene) shadows nothing either.
     """
     r_corners = box_corners(*receivers)
+    tol = 1e-6 * max(float(np.abs(r_corners).max()), 1.0)
+    sides = sides or ReceiverSides()
     keep = []
     for index in np.flatnonzero(casters):
         lo, hi = object_bounds[index]
         if not np.all(np.isfinite(lo)):
             continue
+        if int(index) in sides.enclosing:       # holds the light (receiver_sides checks it) and every pixel
+            continue
         size = hi - lo
         axis = int(np.argmin(size))
         if size[axis] <= 1e-6 * max(float(size.max()), 1e-30):
             plane = (lo[axis] + hi[axis]) / 2.0
-            # The side of the plane the light is on; 0 when the light (a wide sun's cone of directions, or
-            # the extent of a large light) reaches across the plane, which can then shadow either side.
-            if light.kind == SUN:
-                light_side = -np.sign(light.direction[axis])
-                if abs(light.direction[axis]) <= np.sin(min(light.angle / 2.0, np.pi / 2)):
-                    light_side = 0.0
-            else:
-                light_side = np.sign(light.position[axis] - plane)
-                if abs(light.position[axis] - plane) <= _light_extent(light):
-                    light_side = 0.0
-            tol = 1e-6 * max(float(np.abs(r_corners).max()), 1.0)
-            if light_side != 0 and np.all((r_corners[:, axis] - plane) * light_side >= -tol):
+            side = _light_side(light, np.eye(3)[axis], plane)
+            if side != 0 and np.all((r_corners[:, axis] - plane) * side >= -tol):
+                continue
+        if int(index) in sides.flat:    # lit pixels on the light's side of its plane (or on it): nothing to shadow
+            normal, offset, d_lo, d_hi = sides.flat[int(index)]
+            side = _light_side(light, normal, offset)
+            # G-buffer positions on the plane itself carry float32 interpolation error: 1e-4 of the scale
+            if (side > 0 and d_lo >= -100.0 * tol) or (side < 0 and d_hi <= 100.0 * tol):
                 continue
         keep.append(index)
     if not keep:
         return None
     return object_bounds[keep, 0].min(axis=0), object_bounds[keep, 1].max(axis=0)
+
+
+def _light_inside(light: Light, normals: np.ndarray, offsets: np.ndarray) -> bool:
+    """Whether the whole light (its extent included) lies strictly inside the convex region n·p ≤ offset."""
+    if light.kind == SUN:
+        return False
+    return bool(np.all(normals @ np.asarray(light.position, float) - offsets < -max(_light_extent(light), 1e-9)))
+
+
+def _light_side(light: Light, normal: np.ndarray, offset: float) -> float:
+    """The side (±1) of the plane n·p = offset the light is on; 0 when the light (a wide sun's cone of
+    directions, or the extent of a large light) reaches across the plane, which can then shadow either side."""
+    if light.kind == SUN:
+        towards = -float(np.dot(light.direction, normal))
+        return 0.0 if abs(towards) <= np.sin(min(light.angle / 2.0, np.pi / 2)) else float(np.sign(towards))
+    height = float(np.dot(light.position, normal)) - offset
+    return 0.0 if abs(height) <= _light_extent(light) else float(np.sign(height))
 
 
 def _light_extent(light: Light) -> float:

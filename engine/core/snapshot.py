@@ -150,6 +150,58 @@ class SceneSnapshot:
         np.maximum.at(out[:, 1], ids, np.maximum.reduceat(hi, starts))
         return out
 
+    def flat_objects(self, limit: int = 16) -> dict:
+        """Objects whose triangles all lie in one plane (a floor at any tilt, a flattened object), the
+        `limit` largest: index → (unit normal, offset) of the plane n·p = offset. A flat object shadows only
+        what lies beyond its plane as seen from the light (lightview.shadowing_caster_bounds)."""
+        if self.triangle_count == 0 or not self.objects:
+            return {}
+        p = self.positions.astype(np.float64)
+        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        area = np.linalg.norm(normal, axis=1)
+        valid = np.isfinite(area) & (area > 0.0)
+        p, normal, ids, area = p[valid], normal[valid], self.object_id[valid], area[valid]
+        weight = np.bincount(ids, area, len(self.objects))
+        tol = 1e-6 * max(float(np.abs(p).max()) if p.size else 1.0, 1.0)
+        out = {}
+        for index in np.argsort(-weight)[:limit]:
+            mine = ids == index
+            if weight[index] <= 0.0:
+                continue
+            # The plane of the area-weighted normal (both faces of a flattened solid turned one way); flat
+            # when every vertex lies on it.
+            n_tri = normal[mine]
+            n = (n_tri * np.where(n_tri @ n_tri[np.argmax(area[mine])] < 0.0, -1.0, 1.0)[:, None]).sum(axis=0)
+            n /= np.linalg.norm(n)
+            pts = p[mine].reshape(-1, 3) @ n
+            offset = float(pts.mean())
+            if np.abs(pts - offset).max() <= tol:
+                out[int(index)] = (n, offset)
+        return out
+
+    def convex_objects(self, max_faces: int = 512) -> dict:
+        """Convex objects of at most `max_faces` triangles: index → (outward face normals (F, 3), offsets (F,)),
+        the region n·p ≤ offset. A light inside such an object (a room, a dome) cannot be shadowed by it on
+        anything inside it: the segment between two points of a convex region stays inside it, and the
+        surface lies on the region's boundary."""
+        if self.triangle_count == 0:
+            return {}
+        p = self.positions.astype(np.float64)
+        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        area = np.linalg.norm(normal, axis=1)
+        valid = np.isfinite(area) & (area > 0.0)
+        p, normal, ids, area = p[valid], normal[valid], self.object_id[valid], area[valid]
+        tol = 1e-4 * max(float(np.abs(p).max()) if p.size else 1.0, 1.0)
+        counts = np.bincount(ids, minlength=len(self.objects))
+        out = {}
+        for index in np.flatnonzero((counts > 3) & (counts <= max_faces)):
+            mine = ids == index
+            n = normal[mine] / area[mine][:, None]
+            d = np.einsum("fj,fj->f", n, p[mine][:, 0])
+            if (p[mine].reshape(-1, 3) @ n.T - d).max() <= tol:      # every vertex behind every face
+                out[int(index)] = (n, d)
+        return out
+
     def caster_mask(self) -> np.ndarray:
         flags = np.array([o.caster for o in self.objects] or [False], dtype=bool)
         return flags[self.object_id] if self.triangle_count else np.zeros(0, dtype=bool)

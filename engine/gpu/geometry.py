@@ -51,6 +51,14 @@ class SceneGeometry:
     def object_bounds(self) -> np.ndarray:
         raise NotImplementedError
 
+    def flat_objects(self) -> dict:
+        """Flat objects' planes (SceneSnapshot.flat_objects); none known."""
+        return {}
+
+    def convex_objects(self) -> dict:
+        """Convex objects' face planes (SceneSnapshot.convex_objects); none known."""
+        return {}
+
     def render(self, ctx, prog, role: str, objects: frozenset | None = None, position_only: bool = False):
         """Draw `role` ("receiver" or "caster"), optionally only the given object indices, with `prog`."""
         fmt = "3f 24x" if position_only else VERTEX_FORMAT
@@ -78,7 +86,7 @@ class SoupGeometry(SceneGeometry):
         self._masks = {"receiver": snap.receiver_mask(), "caster": snap.caster_mask()}
         self.has_casters = bool(self._masks["caster"].any())
         self._ibos: dict = {}
-        self._bounds = None
+        self._bounds = self._flat = self._convex = None
         self.nbytes = self.vbo.size
 
     def draws(self, role, objects=None):
@@ -96,6 +104,16 @@ class SoupGeometry(SceneGeometry):
         if self._bounds is None:
             self._bounds = self._snap.object_bounds()
         return self._bounds
+
+    def flat_objects(self):
+        if self._flat is None:
+            self._flat = self._snap.flat_objects()
+        return self._flat
+
+    def convex_objects(self):
+        if self._convex is None:
+            self._convex = self._snap.convex_objects()
+        return self._convex
 
     def release(self):
         self.vbo.release()

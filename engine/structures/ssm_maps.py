@@ -183,13 +183,13 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
         frame.warn(text)
     casters, receivers = split_roles(frame.snap)
     bounds = frame.geometry.object_bounds()
-    # A flat caster every visible receiver lies on the light side of shadows nothing (a BOTH floor).
+    # A flat caster every receiver lies on the light side of shadows nothing (a BOTH floor, at any tilt).
     flags = np.zeros(len(frame.snap.objects), bool)
     kept = []
     for index in casters:
         flags[:] = False
         flags[index] = True
-        if lightview.shadowing_caster_bounds(light, bounds, flags, lc.receivers) is not None:
+        if lightview.shadowing_caster_bounds(light, bounds, flags, lc.receivers, lc.receiver_sides) is not None:
             kept.append(index)
     casters = kept
     half = tuple(float(v) for v in light_half_extent(light, lc.view.face))

@@ -26,6 +26,9 @@ class LightContext:
     receivers: tuple                    # world AABB (lo, hi) of the pixels this light reaches
     casters: tuple | None               # world AABB of the casters, None when there are none
     uniforms: dict                      # light-view uniforms plus bias settings
+    # Where the pixels this light reaches lie against flat and convex objects (lightview.receiver_sides):
+    # what shadowing_caster_bounds needs to leave out a floor or a room.
+    receiver_sides: object = None
     structures: dict = field(default_factory=dict)
     # A coloured visibility (RGBA32F texture, rgb per channel) for a textured light: Combined then uses it
     # channel by channel, while `out` keeps the scalar (luminance-weighted) visibility.
