@@ -198,8 +198,11 @@ class SceneSnapshot:
             mine = ids == index
             n = normal[mine] / area[mine][:, None]
             d = np.einsum("fj,fj->f", n, p[mine][:, 0])
-            if (p[mine].reshape(-1, 3) @ n.T - d).max() <= tol:      # every vertex behind every face
+            height = p[mine].reshape(-1, 3) @ n.T - d
+            if height.max() <= tol:             # every vertex behind every face
                 out[int(index)] = (n, d)
+            elif height.min() >= -tol:          # faces wound inwards (a room seen from inside)
+                out[int(index)] = (-n, -d)
         return out
 
     def caster_mask(self) -> np.ndarray:

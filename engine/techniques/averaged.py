@@ -37,8 +37,32 @@ def concentric_disk(q: np.ndarray) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
 
 
-def light_samples(light: Light, n: int, seed: int = 0) -> np.ndarray:
-    """(n, 2) offsets in the light's local XY plane: metres, or tan of the tilt for a sun."""
+def projected_disk_ball(n: int, seed: int = 0) -> np.ndarray:
+    """n points in the unit ball whose projection along ANY direction is uniform over the unit disk: radial
+    density ∝ 1/√(1 − r²) (its integral along a chord at distance ρ from the centre is π for every ρ). A point
+    or spot light with a radius is, seen from each receiver, a disk facing it (Cycles' soft falloff, or the
+    sphere's silhouette far away); points on one fixed disk would be foreshortened for receivers off its axis.
+    Stratified with the R3 sequence (Roberts 2018) and a seeded offset."""
+    g = 1.22074408460575947536                  # x⁴ = x + 1
+    u = (np.random.default_rng(seed).random(3) + np.arange(1, n + 1)[:, None] * g ** -np.arange(1.0, 4.0)) % 1.0
+    z = 1.0 - 2.0 * u[:, 0]
+    phi = 2.0 * np.pi * u[:, 1]
+    ring = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+    direction = np.stack([ring * np.cos(phi), ring * np.sin(phi), z], axis=1)
+    # r = sin ψ with CDF (ψ − sin ψ cos ψ)/(π/2); Newton steps
+    target = u[:, 2] * np.pi / 2.0
+    psi = np.full(n, np.pi / 4.0)
+    for _ in range(30):
+        f = psi - np.sin(psi) * np.cos(psi) - target
+        psi = np.clip(psi - f / np.maximum(2.0 * np.sin(psi) ** 2, 1e-6), 0.0, np.pi / 2.0)
+    return direction * np.sin(psi)[:, None]
+
+
+def light_samples(light: Light, n: int, seed: int = 0, ball: bool = False) -> np.ndarray:
+    """(n, 2) offsets in the light's local XY plane: metres, or tan of the tilt for a sun; with `ball`, (n, 3)
+    points in a point or spot light's ball (`projected_disk_ball`) instead of its disk."""
+    if ball and light.kind not in (AREA, SUN):
+        return projected_disk_ball(n, seed) * light.radius
     q = unit_square_samples(n, seed)
     round_ = light.kind != AREA or light.shape in (DISK, ELLIPSE)
     if round_:
@@ -54,6 +78,20 @@ def light_samples(light: Light, n: int, seed: int = 0) -> np.ndarray:
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.nan_to_num(q / r[:, None]) * tan_t[:, None]
     return q * light.radius
+
+
+def _fills_ball(light: Light, view) -> bool:
+    """Whether a sphere light's samples fill its ball or its disk across the view axis. A receiver θ
+    off the axis sees the disk foreshortened by cos θ, the ball never; but a ball point nearer or farther
+    than the centre moves the ray to a receiver at distance d by up to r/d across its disk. The view's
+    widest angle (1 − cos θ) against r over its near depth picks the smaller error: the disk for a narrow
+    view (a spot's cone), the ball for a light whose receivers surround it (a room). A cube face keeps the
+    ball: its axis is not the light frame's Z, across which the disk lies."""
+    if view.face is not None:
+        return True
+    t = float(np.max(np.abs(view.window)))
+    foreshortening = 1.0 - 1.0 / float(np.hypot(1.0, t))
+    return foreshortening > light.radius / max(float(view.near), 1e-9)
 
 
 def tilted_sun(light: Light, offset: np.ndarray) -> Light:
@@ -87,7 +125,7 @@ class AveragedMaps(Technique):
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
-        offsets = light_samples(light, n, s.seed) if not light.is_delta else np.zeros((1, 2))
+        offsets = light_samples(light, n, s.seed, _fills_ball(light, lc.view)) if not light.is_delta else np.zeros((1, 2))
         sums = frame.texture((frame.width, frame.height), 4)
         sums.write(np.zeros((frame.height, frame.width, 4), np.float32).tobytes())
         weight_mode = WEIGHT_NONE
@@ -102,7 +140,7 @@ class AveragedMaps(Technique):
                 view = lightview.fit(tilted, lc.receivers, lc.casters, s.shadow_map_size)
                 sample_world, emit = light.position, tilted.direction
             else:
-                local = np.array([offset[0], offset[1], 0.0])
+                local = np.array([offset[0], offset[1], offset[2] if len(offset) > 2 else 0.0])
                 # A cube face keeps its turn: every sample's map looks the way the face looks.
                 view = lightview.fit(light, lc.receivers, lc.casters, s.shadow_map_size, origin_local=local,
                                      frame=lc.view.frame, face=lc.view.face)
