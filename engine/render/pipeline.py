@@ -210,7 +210,9 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                 with t.stage("light_view"):
                     face_view = lightview.fit(light, receivers, casters, frame.settings.shadow_map_size,
                                               frame=view.view, face=rotation)
-                if lightview.outside_view(face_view, pts).any():
+                # Pixels outside a face's window lie where no caster can shadow them (fit's window holds the
+                # shadowable receivers); only a face too wide for its map would leave shadowable ones out.
+                if face_view.clamped:
                     frame.warn(f"Light '{light.name}': some pixels fall outside its cube-face views "
                                "(please report this scene).")
         if casters is not None:

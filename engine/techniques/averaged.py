@@ -14,7 +14,7 @@ import numpy as np
 from ..core import lightview
 from ..core.shading import spot_uniforms
 from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE, WEIGHT_SUN
-from ..core.snapshot import AREA, DISK, ELLIPSE, SUN, Light
+from ..core.snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 from .base import MAP_SIZE_SWEEP, Option, Technique
 
 
@@ -132,6 +132,8 @@ class AveragedMaps(Technique):
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
         spot = {k: v for k, v in spot_uniforms(light).items() if k != "u_spot_tan_wide"}
+        true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
+        spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
         for i, offset in enumerate(offsets):
             frame.progress.check()
             emit = light.direction

@@ -10,6 +10,7 @@
 uniform sampler2D u_depth_map;
 uniform vec3 u_sample_position;   // world position of the sample (perspective views)
 uniform vec3 u_emit_dir;          // light's emission axis (world); a sun's: this sample's direction
+uniform vec4 u_sphere_inside;     // a true sphere light's centre and r² (r² = -1 for any other light)
 uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine), WEIGHT_SUN
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
 
@@ -31,7 +32,10 @@ void main() {
         if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-dir, u_emit_dir), 0.0);
         // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
         // spot's disk reaches p only from its footprint; see shading/irradiance.glsl).
-        if (u_spot_cos_half > -1.0) w *= spot_attenuation(-dir);
+        // Inside a true sphere Cycles applies no cone (u_sphere_inside: centre and r², r² < 0 otherwise).
+        vec3 from_centre = p - u_sphere_inside.xyz;
+        bool inside = dot(from_centre, from_centre) <= u_sphere_inside.w;
+        if (u_spot_cos_half > -1.0 && !inside) w *= spot_attenuation(-dir);
     }
     imageStore(u_sums, px, imageLoad(u_sums, px) + vec4(w * v, w, v, 1.0));
 }

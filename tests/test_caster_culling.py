@@ -1,0 +1,82 @@
+"""Casters that cannot shadow what a light reaches stay out of its view (issue 10: tilted floors, lights in
+rooms). A flat caster shadows only what lies beyond its plane; a convex caster that holds the light and every
+lit pixel shadows nothing. Left in, they stretch the light's map over the whole scene, and its texels then
+miss small or thin casters (fuzz seed 73: a flattened cylinder over a tilted floor, inside a huge sphere)."""
+import numpy as np
+
+from penumbra.engine.core import lightview
+from penumbra.engine.measure import stress
+from penumbra.engine.techniques.averaged import projected_disk_ball
+
+
+def _rotation_x(angle):
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _tilted_floor_scene(pebble_below=False):
+    """A 25° tilted floor, a small block resting on it, an area light above; optionally a block poking
+    through to the floor's far side."""
+    turn = _rotation_x(np.radians(25))
+    floor = stress.quad((0, 0, 0), 4.0) @ turn.T
+    block = stress.box((-0.2, -0.2, 0.3), (0.2, 0.2, 0.7)) @ turn.T
+    parts = [("Floor", floor, True, True), ("Block", block, True, True)]
+    if pebble_below:
+        parts.append(("Pebble", stress.box((1.0, 1.0, -0.6), (1.3, 1.3, -0.2)) @ turn.T, True, True))
+    light = stress.area_light((0.0, -1.0, 4.0), size=0.5)
+    return stress.assemble(parts, [light], stress.camera(), "tilted"), light
+
+
+def _caster_bounds(snap, light, points):
+    sides = lightview.receiver_sides(light, snap.flat_objects(), snap.convex_objects(), points)
+    casters = np.array([o.caster for o in snap.objects])
+    receivers = (points.min(axis=0), points.max(axis=0))
+    return lightview.shadowing_caster_bounds(light, snap.object_bounds(), casters, receivers, sides)
+
+
+def test_a_tilted_floor_is_flat_and_shadows_nothing_on_its_light_side():
+    snap, light = _tilted_floor_scene()
+    flat = snap.flat_objects()
+    assert 0 in flat and 1 not in flat
+    normal, _ = flat[0]
+    assert np.isclose(abs(normal @ _rotation_x(np.radians(25))[:, 2]), 1.0)
+    points = snap.positions.reshape(-1, 3).astype(np.float64)          # every vertex lit
+    lo, hi = _caster_bounds(snap, light, points)
+    block = snap.object_bounds()[1]
+    assert np.allclose(lo, block[0]) and np.allclose(hi, block[1]), "only the block can shadow"
+
+
+def test_a_tilted_floor_stays_a_caster_when_something_lit_lies_beyond_it():
+    snap, light = _tilted_floor_scene(pebble_below=True)
+    points = snap.positions.reshape(-1, 3).astype(np.float64)
+    lo, hi = _caster_bounds(snap, light, points)
+    floor = snap.object_bounds()[0]
+    assert np.all(lo <= floor[0] + 1e-6) and np.all(hi >= floor[1] - 1e-6)
+
+
+def test_a_room_holding_the_light_and_every_lit_pixel_shadows_nothing_but_what_is_inside():
+    room = stress.box((-3, -3, 0), (3, 3, 3), inward=True)
+    block = stress.box((-0.3, -0.3, 0.0), (0.3, 0.3, 0.6))
+    light = stress.area_light((0.5, 0.0, 2.0), size=0.4)
+    snap = stress.assemble([("Room", room, True, True), ("Block", block, True, True)], [light],
+                           stress.camera(), "room")
+    assert set(snap.convex_objects()) == {0, 1}
+    inside = np.random.default_rng(1).uniform((-2.9, -2.9, 0.0), (2.9, 2.9, 2.9), (500, 3))
+    lo, hi = _caster_bounds(snap, light, inside)
+    assert np.allclose(lo, snap.object_bounds()[1][0]) and np.allclose(hi, snap.object_bounds()[1][1])
+    # A lit point outside the room (seen through nothing, but lit by the light's emission test): the walls
+    # would shadow it, so they stay.
+    outside = np.vstack([inside, [[5.0, 0.0, 1.0]]])
+    lo, hi = _caster_bounds(snap, light, outside)
+    assert np.allclose(lo, snap.object_bounds()[0][0]) and np.allclose(hi, snap.object_bounds()[0][1])
+
+
+def test_sphere_light_ball_samples_project_to_a_uniform_disk_in_every_direction():
+    """REFERENCE samples a sphere light's ball when its receivers surround it: every receiver must see the
+    samples spread uniformly over the disk facing it (Cycles' soft falloff), whatever its direction."""
+    p = projected_disk_ball(40000, seed=2)
+    assert np.all(np.linalg.norm(p, axis=1) <= 1.0 + 1e-9)
+    for d in (np.array([0.0, 0.0, 1.0]), np.array([1.0, 1.0, 1.0]) / np.sqrt(3.0), np.array([1.0, 0.0, 0.0])):
+        rho2 = np.sum((p - np.outer(p @ d, d)) ** 2, axis=1)
+        counts = np.histogram(rho2, bins=8, range=(0.0, 1.0))[0]      # uniform disk: ρ² uniform
+        assert np.abs(counts / counts.mean() - 1.0).max() < 0.05, counts
