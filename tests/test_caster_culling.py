@@ -28,7 +28,7 @@ def _tilted_floor_scene(pebble_below=False):
 
 
 def _caster_bounds(snap, light, points):
-    sides = lightview.receiver_sides(light, snap.flat_objects(), snap.convex_objects(), points)
+    sides = lightview.receiver_sides([light], snap.flat_objects(), snap.convex_objects(), points)
     casters = np.array([o.caster for o in snap.objects])
     receivers = (points.min(axis=0), points.max(axis=0))
     return lightview.shadowing_caster_bounds(light, snap.object_bounds(), casters, receivers, sides)

@@ -266,19 +266,20 @@ class ReceiverSides:
     enclosing: dict = field(default_factory=dict)   # index → (normals, offsets): convex objects holding them all
 
 
-def receiver_sides(light: Light, flat: dict, convex: dict, xyz: np.ndarray, where: np.ndarray | None = None,
+def receiver_sides(lights, flat: dict, convex: dict, xyz: np.ndarray, where: np.ndarray | None = None,
                    max_work: float = 2e8) -> ReceiverSides:
-    """The receiver points `xyz` (…, 3), those selected by the boolean `where` (…) when given, against the
-    flat objects (SceneSnapshot.flat_objects) and the convex objects (SceneSnapshot.convex_objects) that hold
-    `light`; a convex object is tested only when its faces × the points stay under `max_work`."""
+    """The receiver points `xyz` (…, 3), those selected by the boolean `where` (…) when given (a frame's
+    covered pixels: a superset of what any light reaches, so what it rules out holds for every light), against
+    the flat objects (SceneSnapshot.flat_objects) and the convex objects (SceneSnapshot.convex_objects) that
+    hold one of `lights`; a convex object is tested only when its faces × the points stay under `max_work`."""
     sides = ReceiverSides()
+    mask = True if where is None else where
     for index, (normal, offset) in flat.items():
         d = xyz @ np.asarray(normal, xyz.dtype) - np.asarray(offset, xyz.dtype)
-        mask = True if where is None else where
         lo, hi = float(d.min(initial=np.inf, where=mask)), float(d.max(initial=-np.inf, where=mask))
         if lo <= hi:
             sides.flat[index] = (normal, offset, lo, hi)
-    holding = {i: planes for i, planes in convex.items() if _light_inside(light, *planes)}
+    holding = {i: planes for i, planes in convex.items() if any(_light_inside(lt, *planes) for lt in lights)}
     if holding:
         pts = (xyz[where] if where is not None else xyz.reshape(-1, 3)).astype(np.float64)
         scale = max(float(np.abs(pts).max(initial=0.0)), 1.0)
@@ -309,7 +310,7 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
         lo, hi = object_bounds[index]
         if not np.all(np.isfinite(lo)):
             continue
-        if int(index) in sides.enclosing:       # holds the light (receiver_sides checks it) and every pixel
+        if int(index) in sides.enclosing and _light_inside(light, *sides.enclosing[int(index)]):
             continue
         size = hi - lo
         axis = int(np.argmin(size))

@@ -88,6 +88,9 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     caster_objects = np.array([o.caster for o in snap.objects], bool)
     object_bounds = frame.geometry.object_bounds()
     has_casters = frame.geometry.has_casters
+    # Where the visible pixels lie against flat and convex casters, once per frame (lightview.receiver_sides)
+    frame.receiver_sides = sides = lightview.receiver_sides(
+        snap.lights, frame.geometry.flat_objects(), frame.geometry.convex_objects(), position[..., :3], covered)
     debug: dict = {}
     stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
              "covered_pixels": int(covered.sum()), "technique": technique.identifier}
@@ -111,10 +114,9 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         xyz, where = position[..., :3], lit[..., None]     # bounds without copying the lit pixels out
         receivers = (xyz.min(axis=(0, 1), where=where, initial=np.inf).astype(np.float64),
                      xyz.max(axis=(0, 1), where=where, initial=-np.inf).astype(np.float64))
-        casters, planes = None, None
+        casters = None
         if light.casts_shadow and has_casters:
-            planes = _receiver_sides(frame, light, xyz, lit)
-            casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, planes)
+            casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, sides)
         rgb = None
         if casters is None:
             visibility.write(ones)              # nothing can shadow what this light reaches
@@ -127,8 +129,8 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                     lit_xyz = position[lit][:, :3]
                     faces = lightview.split_faces(view, lit_xyz)
             if faces is None:
-                rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, planes,
-                                       visibility, stats, debug)
+                rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
+                                       stats, debug)
             else:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, lit_xyz,
                                        irradiance, object_bounds, caster_objects, visibility, stats, debug)
@@ -147,13 +149,13 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     return FrameResult(out, dict(t), frame.warnings, stats)
 
 
-def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, planes, out,
-                     stats: dict, debug: dict):
+def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
+                     debug: dict):
     """One light view: build the structures the technique declares, then its visibility into `out`. Returns
     the technique's coloured visibility texture, if it made one."""
     t = frame.timings
     lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms},
-                      planes)
+                      frame.receiver_sides)
     memory = stats.setdefault("structure_bytes", {})    # per structure: the largest light view's
     for need in structures.plan(technique.needs_for(frame.settings)):    # what the technique declares, once
         with t.stage("shadow_map"):
@@ -166,12 +168,6 @@ def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers
         stats.setdefault("per_light", []).append({"light": light.name, **lc.stats})
     _keep_max(debug, lc.debug)
     return lc.visibility_rgb
-
-
-def _receiver_sides(frame: Frame, light, xyz, where=None):
-    """The lit receivers against the scene's flat and convex objects (lightview.receiver_sides)."""
-    geometry = frame.geometry
-    return lightview.receiver_sides(light, geometry.flat_objects(), geometry.convex_objects(), xyz, where)
 
 
 def _keep_max(debug: dict, more: dict) -> None:
@@ -196,16 +192,15 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         owner.reshape(-1)[lit_index[mask]] = index
     owner_tex.write(owner.tobytes())
     for index, (rotation, mask) in enumerate(faces):
-        rgb, casters, planes = None, None, None
+        rgb, casters = None, None
         if rotation is None:                    # the light's single view keeps the pixels it holds
             receivers, casters, face_view = view_receivers, view_casters, view
-            planes = _receiver_sides(frame, light, lit_xyz[mask])
         else:
             pts = lit_xyz[mask].astype(np.float64)
             receivers = (pts.min(axis=0), pts.max(axis=0))
             if light.casts_shadow and frame.geometry.has_casters:
-                planes = _receiver_sides(frame, light, pts)
-                casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, planes)
+                casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers,
+                                                            frame.receiver_sides)
             if casters is not None:
                 with t.stage("light_view"):
                     face_view = lightview.fit(light, receivers, casters, frame.settings.shadow_map_size,
@@ -217,8 +212,8 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                                "(please report this scene).")
         if casters is not None:
             view_debug: dict = {}
-            rgb = _view_visibility(frame, technique, light, face_view, irradiance, receivers, casters, planes,
-                                   face_out, stats, view_debug)
+            rgb = _view_visibility(frame, technique, light, face_view, irradiance, receivers, casters, face_out,
+                                   stats, view_debug)
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))
