@@ -366,3 +366,46 @@ def test_textured_scene_combined_matches_cycles(bpy_mod):
     # The checker is there: the lit ground's pixels split into bright and dark squares, as in Cycles.
     lum = ours[lit].mean(-1)
     assert np.percentile(lum, 90) > 10.0 * np.percentile(lum, 10)
+
+
+class _Labels:
+    """Stands in for Blender's UILayout and records the labels a panel draws."""
+
+    def __init__(self):
+        self.lines = []
+
+    def column(self, **_):
+        return self
+
+    def label(self, text="", icon="NONE"):
+        self.lines.append((icon, text))
+
+
+def test_material_panel_says_what_is_read_and_what_is_not(bpy_mod):
+    bpy = bpy_mod
+    import penumbra
+    if not hasattr(bpy.types.Scene, "penumbra"):
+        penumbra.register()
+    from penumbra.engine.measure import scenes
+    from penumbra.ui.panels import MATERIAL_PT_penumbra
+    scenes.build("textured", resolution=(32, 32))
+    assert hasattr(bpy.types, "MATERIAL_PT_penumbra")
+    icons = set(bpy.types.UILayout.bl_rna.functions["label"].parameters["icon"].enum_items.keys())
+
+    def drawn(mat):
+        layout = _Labels()
+        MATERIAL_PT_penumbra.draw(type("Panel", (), {"layout": layout})(), type("Ctx", (), {"material": mat})())
+        assert all(icon in icons for icon, _ in layout.lines)
+        return layout.lines
+
+    checker = drawn(bpy.data.materials["CheckerMaterial"])
+    assert checker[0][1] == "Base colour: image 'Checker' through the active UV map and a Mapping"
+    assert not any(icon == "ERROR" for icon, _ in checker)
+    noisy = bpy.data.materials["OccluderMaterial"].copy()
+    nt = noisy.node_tree
+    bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    nt.links.new(nt.nodes.new("ShaderNodeTexWave").outputs["Color"], bsdf.inputs["Base Color"])
+    lines = drawn(noisy)
+    assert lines[0][1] == "Base colour: 0.8 grey"
+    errors = " ".join(text for icon, text in lines if icon in ("ERROR", "BLANK1"))
+    assert lines[1][0] == "ERROR" and "Wave Texture" in errors and "does not read" in errors
