@@ -261,6 +261,35 @@ def test_uv_map_node_texture_coordinate_and_the_active_map(bpy_mod):
     assert len(s.textures) == 1                                # one image, one setting: one texture
 
 
+def test_mirrored_instances_keep_each_corner_its_uv(bpy_mod):
+    """Mirrored instances have corners 1 and 2 swapped to keep their winding: their uv must follow."""
+    bpy = bpy_mod
+    from penumbra.engine.measure import scenes
+    _empty_scene(bpy)
+    img = scenes.checker_image("C", size=8, cells=2)
+    mat, _ = _image_material(bpy, "M", img)
+    plain = _quad_object(bpy, "Plain", mat)
+    scenes.set_planar_uv(plain, scale=2.0)
+    plain.data.vertices[2].co.x = 1.5                           # not symmetric, so a swap would show
+    mirrored = bpy.data.objects.new("Mirrored", plain.data)
+    bpy.context.scene.collection.objects.link(mirrored)
+    mirrored.scale = (-1.0, 1.0, 1.0)
+    mirrored.location = (0.0, 0.0, 1.0)
+    bpy.context.view_layer.update()
+    s = _snap(bpy)
+    names = [o.name for o in s.objects]
+    for name, ob in (("Plain", plain), ("Mirrored", mirrored)):
+        sel = s.object_id == names.index(name)
+        inv = np.linalg.inv(np.array(ob.matrix_world))
+        world = s.positions[sel].reshape(-1, 3).astype(np.float64)
+        local = (world @ inv[:3, :3].T + inv[:3, 3]).reshape(-1, 3, 3)
+        # The UV map was made from the original corners (before the 1.5 move): look each corner up by vertex.
+        co = np.array([v.co[:] for v in ob.data.vertices])
+        vertex = np.argmin(np.linalg.norm(local[..., None, :] - co[None, None], axis=-1), axis=-1)
+        original = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+        assert np.allclose(s.uv[sel], original[vertex] / 2.0 + 0.5, atol=1e-6), name
+
+
 def test_colour_attribute_per_corner_and_point(bpy_mod):
     bpy = bpy_mod
     from penumbra.engine.measure import scenes

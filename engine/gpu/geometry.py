@@ -63,7 +63,8 @@ def upload_textures(ctx, textures: list[AlbedoTexture]) -> tuple[list[AlbedoMap]
             h, w = tex.pixels.shape[:2]
             byte = tex.pixels.dtype == np.uint8
             rgba = np.full((h, w, 4), 255 if byte else 1.0, np.uint8 if byte else np.float16)
-            rgba[..., :3] = tex.pixels
+            # Half floats end at 65504: brighter (HDR) texels are held there rather than turning infinite.
+            rgba[..., :3] = tex.pixels if byte else np.clip(np.nan_to_num(tex.pixels), 0.0, 65504.0)
             image = images[id(tex.pixels)] = ctx.texture((w, h), 4, rgba.tobytes(), dtype="f1" if byte else "f2")
             nbytes += rgba.nbytes
         maps.append(AlbedoMap(ctx, tex, image))
