@@ -370,7 +370,7 @@ def _color_source(fed) -> tuple[AlbedoSource | None, str]:
     Read: RGB node; Image Texture (Flat projection, image from a file or generated/packed, Color output)
     whose Vector comes from nothing (the active UV map), a UV Map node, Texture Coordinate's UV output, or
     any chain of Mapping nodes (Point, Texture or Vector type, unlinked settings) ending in one of those;
-    Color Attribute node."""
+    Color Attribute node; Attribute node (Geometry type, Color output) naming a colour attribute."""
     if fed is None:
         return None, "comes from a muted or invalid link"
     node, out_socket = fed
@@ -382,6 +382,10 @@ def _color_source(fed) -> tuple[AlbedoSource | None, str]:
         name = str(node.layer_name)
         return AlbedoSource((1.0, 1.0, 1.0), attribute=name,
                             description=f"colour attribute '{name or '(active render)'}'"), ""
+    if (kind == "ShaderNodeAttribute" and out_socket.name == "Color" and node.attribute_type == "GEOMETRY"
+            and node.attribute_name):
+        name = str(node.attribute_name)
+        return AlbedoSource((1.0, 1.0, 1.0), attribute=name, description=f"colour attribute '{name}'"), ""
     if kind != "ShaderNodeTexImage":
         return None, f"comes from {_node_label(node)}"
     image = node.image
