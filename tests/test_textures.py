@@ -340,14 +340,20 @@ def test_what_is_not_read_is_named_and_grey(bpy_mod):
     _quad_object(bpy, "B", generated, z=0.1)
     no_uv, _ = _image_material(bpy, "NoUV", img)
     _quad_object(bpy, "C", no_uv, z=0.2)                       # a mesh without any UV map
+    missing = bpy.data.images.new("Missing", 4, 4)
+    missing.source, missing.filepath = "FILE", "/nonexistent/missing.png"
+    lost, _ = _image_material(bpy, "Lost", missing)
+    _quad_object(bpy, "D", lost, z=0.3)
     s = _snap(bpy)
     text = "\n".join(s.warnings)
+    assert "material 'Lost'" in text and "image 'Missing' which has no pixels" in text
     assert "material 'Noisy'" in text and "'My Noise' (ShaderNodeTexNoise)" in text and "0.8 grey" in text
     assert "material 'Generated'" in text and "Generated output" in text
     assert "object 'C' has no UV map" in text
     names = [o.name for o in s.objects]
     assert np.allclose(s.albedo[s.object_id == names.index("A")], 0.8)
     assert np.allclose(s.albedo[s.object_id == names.index("B")], 0.8)
+    assert np.allclose(s.albedo[s.object_id == names.index("D")], 0.8)
     assert (s.texture_id[s.object_id == names.index("C")] == 0).all()   # read at (0, 0), as warned
     assert np.allclose(s.uv[s.object_id == names.index("C")], 0.0)
 
