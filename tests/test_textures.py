@@ -477,3 +477,29 @@ def test_material_panel_says_what_is_read_and_what_is_not(bpy_mod):
     assert lines[0][1] == "Base colour: 0.8 grey"
     errors = " ".join(text for icon, text in lines if icon in ("ERROR", "BLANK1"))
     assert lines[1][0] == "ERROR" and "Wave Texture" in errors and "does not read" in errors
+
+
+@pytest.mark.parametrize("case", ["image", "attribute"])
+def test_viewport_frame_matches_the_final_render_when_textured(bpy_mod, case):
+    bpy = bpy_mod
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.blender.viewport_sync import BlenderViewport
+    from penumbra.engine.measure import scenes
+    scene = scenes.build("textured", resolution=(64, 48))
+    if case == "attribute":
+        _paint_ground(bpy, scene)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    snap = extract(depsgraph, scene)
+    settings = RenderSettings(technique="PCSS", shadow_map_size=256)
+    final = pipeline.render(snap, settings)
+    session = BlenderViewport()
+    try:
+        session.sync(depsgraph)
+        session.request(snap.camera, settings, progressive=False)
+        frame = session.wait()
+    finally:
+        session.free()
+    diff = np.abs(frame.passes["Unshadowed"] - final.passes["Unshadowed"])
+    # Object-space buffers transformed on the GPU vs world-space vertices in numpy: float rounding only.
+    assert np.mean(diff) < 1e-3 * np.mean(final.passes["Unshadowed"]) + 1e-4, np.mean(diff)
+    assert np.mean(diff > 1e-2) < 0.01

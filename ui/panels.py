@@ -178,8 +178,6 @@ def material_report(mat, width: int = 60) -> list[tuple[str, str]]:
     problems: list[str] = []
     source = material_albedo_source(mat, problems.append)
     lines = [("INFO", f"Base colour: {source.description or 'constant colour'}")]
-    if source.varies:
-        lines.append(("INFO", "The viewport shows it as 0.8 grey; renders sample it"))
     for problem in problems:
         for i, part in enumerate(textwrap.wrap(problem, width)):
             lines.append(("ERROR" if i == 0 else "BLANK1", part))

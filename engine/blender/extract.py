@@ -353,17 +353,6 @@ def material_albedo_source(mat, warn) -> AlbedoSource:
     return source
 
 
-def material_albedo(mat, warn) -> tuple[float, float, float]:
-    """Constant diffuse colour of a material, linear RGB (the viewport's; a texture or colour attribute reads
-    as 0.8 grey there, with a warning). `warn(text)` is called for anything approximated."""
-    source = material_albedo_source(mat, warn)
-    if source.varies:
-        warn(f"material '{mat.name}': the viewport does not sample {source.description}: 0.8 grey there "
-             "(final renders read it)")
-        return GREY
-    return source.color
-
-
 def _color_source(fed) -> tuple[AlbedoSource | None, str]:
     """(source, note) for the node output feeding a base colour; (None, what it is) when not read.
 
@@ -761,7 +750,7 @@ def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, materi
     return oid, tid
 
 
-class _Textures:
+class AlbedoTextures:
     """The snapshot's albedo textures: one per (image, interpolation, extension), each image read once."""
 
     def __init__(self, warn):
@@ -783,7 +772,7 @@ class _Textures:
         return i
 
 
-def _table_arrays(arrays: _MeshArrays, sources: tuple, textures: _Textures):
+def table_arrays(arrays: _MeshArrays, sources: tuple, textures: AlbedoTextures):
     """One mesh under one slot list: per-triangle albedo (t, 3) and, when a source varies over the surface,
     (texture id (t,), uv (t, 3, 2), corner colour (t, 3, 3)); else None."""
     mat = np.clip(arrays.mat, 0, len(sources) - 1)
@@ -812,7 +801,7 @@ def _table_arrays(arrays: _MeshArrays, sources: tuple, textures: _Textures):
 
 def _assemble(groups, mesh_arrays, albedo_tables, warn) -> tuple[dict, list]:
     """The geometry arrays of every mesh group (and the textures they sample)."""
-    textures = _Textures(warn)
+    textures = AlbedoTextures(warn)
     pos_parts, nrm_parts, oid_parts, alb_parts, var_parts = [], [], [], [], []
     for mesh_ptr, (mats, oids, tids) in groups.items():
         arrays = mesh_arrays[mesh_ptr]
@@ -825,7 +814,7 @@ def _assemble(groups, mesh_arrays, albedo_tables, warn) -> tuple[dict, list]:
         oid_parts.append(np.repeat(np.asarray(oids, np.int32), t))
         tids = np.asarray(tids, np.int32)
         k = len(tids)
-        per_table = {int(tid): _table_arrays(arrays, albedo_tables[tid], textures) for tid in np.unique(tids)}
+        per_table = {int(tid): table_arrays(arrays, albedo_tables[tid], textures) for tid in np.unique(tids)}
         if len(per_table) == 1:
             alb = np.broadcast_to(next(iter(per_table.values()))[0], (k, t, 3))
         else:

@@ -84,6 +84,18 @@ class Draw:
     uv: object | None = None     # buffer of 2 floats per vertex (in_uv), None: no texture coordinates
 
 
+def texture_order(ids: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int, int]]]:
+    """Triangles grouped by texture: (stable order of `ids`, [(texture id or -1, first, count)] in that order,
+    counted in triangles), so one draw per texture binds it once."""
+    order = np.argsort(ids, kind="stable")
+    ids = ids[order]
+    if ids.size == 0:
+        return order, []
+    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
+    ends = np.r_[starts[1:], ids.size]
+    return order, [(int(ids[a]), int(a), int(b - a)) for a, b in zip(starts, ends)]
+
+
 def _merged(draws: list[Draw]) -> list[Draw]:
     """Consecutive ranges of one buffer pair and transform as one draw (depth passes ignore textures)."""
     out: list[Draw] = []
@@ -184,14 +196,9 @@ class SoupGeometry(SceneGeometry):
             tris = np.flatnonzero(mask)
             ranges = [(None, 0, 3 * tris.size)]
             if self.maps:
-                # Triangles ordered by texture (stable, so untextured ones keep their order): one range each.
-                ids = self._snap.texture_id[tris]
-                order = np.argsort(ids, kind="stable")
-                tris, ids = tris[order], ids[order]
-                starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]]) if tris.size else np.zeros(0, int)
-                ends = np.r_[starts[1:], tris.size]
-                ranges = [(self.maps[ids[a]] if ids[a] >= 0 else None, 3 * int(a), 3 * int(b - a))
-                          for a, b in zip(starts, ends)]
+                order, groups = texture_order(self._snap.texture_id[tris])
+                tris = tris[order]
+                ranges = [(self.maps[i] if i >= 0 else None, 3 * first, 3 * n) for i, first, n in groups]
             corners = (3 * tris[:, None] + np.arange(3)).ravel().astype(np.uint32)
             ibo = self._ctx.buffer(corners.tobytes()) if corners.size else None
             self._ibos[key] = (ibo, ranges if corners.size else [])
