@@ -169,8 +169,39 @@ class OBJECT_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         col.prop(obj, "visible_shadow", text="Shadow")
 
 
+def material_report(mat, width: int = 60) -> list[tuple[str, str]]:
+    """(icon, line) pairs: where Penumbra's final render takes `mat`'s diffuse colour from, and every node it
+    does not read (extraction's own warnings, wrapped to `width` characters)."""
+    import textwrap
+
+    from ..engine.blender.extract import material_albedo_source
+    problems: list[str] = []
+    source = material_albedo_source(mat, problems.append)
+    lines = [("INFO", f"Base colour: {source.description or 'constant colour'}")]
+    for problem in problems:
+        for i, part in enumerate(textwrap.wrap(problem, width)):
+            lines.append(("ERROR" if i == 0 else "BLANK1", part))
+    lines.append(("BLANK1", "Read: Principled/Diffuse colour, RGB, Image Texture through"))
+    lines.append(("BLANK1", "UV Map / Texture Coordinate UV / Mapping, Color Attribute"))
+    return lines
+
+
+class MATERIAL_PT_penumbra(PenumbraPanel, bpy.types.Panel):
+    bl_label = "Penumbra"
+    bl_context = "material"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and getattr(context, "material", None) is not None
+
+    def draw(self, context):
+        col = self.layout.column(align=True)
+        for icon, text in material_report(context.material):
+            col.label(text=text, icon=icon)
+
+
 classes = (RENDER_PT_penumbra, RENDER_PT_penumbra_viewport, RENDER_PT_penumbra_compare, DATA_PT_penumbra_light,
-           OBJECT_PT_penumbra)
+           OBJECT_PT_penumbra, MATERIAL_PT_penumbra)
 
 
 def _compatible_panels():

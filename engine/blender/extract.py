@@ -20,10 +20,12 @@ Behaviour that mirrors Cycles (intern/cycles/blender/light.cpp, scene/light.cpp)
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..core.snapshot import AREA, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Camera, Light, ObjectInfo, SceneSnapshot
+from ..core.snapshot import (AREA, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, AlbedoTexture, Camera, Light, ObjectInfo,
+                             SceneSnapshot)
 
 GREY = (0.8, 0.8, 0.8)
 # A triangle is dropped when its area is below this fraction of the squared scene diagonal.
@@ -84,12 +86,16 @@ def _stack_matrices(mats: list) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------------------
 
 class _MeshArrays:
-    __slots__ = ("pos", "nrm", "mat")
+    __slots__ = ("pos", "nrm", "mat", "loops", "tri_verts", "uv", "colors")
 
-    def __init__(self, pos, nrm, mat):
+    def __init__(self, pos, nrm, mat, loops=None, tri_verts=None):
         self.pos = pos          # (t, 3, 3) float32, object space
         self.nrm = nrm          # (t, 3, 3) float32, object space corner normals
         self.mat = mat          # (t,) int32 material index (unclamped)
+        self.loops = loops      # (3t,) corner (loop) index of each triangle corner
+        self.tri_verts = tri_verts  # (3t,) vertex index of each triangle corner
+        self.uv = {}            # UV map name ("" = active render) -> (t, 3, 2) float32, read on demand
+        self.colors = {}        # colour attribute name ("" = active render) -> (t, 3, 3) float32, on demand
 
 
 def _read_int_attribute(mesh, name: str, domain: str, count: int):
@@ -143,7 +149,41 @@ def read_mesh(mesh) -> _MeshArrays | None:
         mat = np.take(face_mat, tri_poly)
 
     return _MeshArrays(np.take(co, tri_verts, axis=0).reshape(nt, 3, 3),
-                       np.take(cn, loops, axis=0).reshape(nt, 3, 3), mat)
+                       np.take(cn, loops, axis=0).reshape(nt, 3, 3), mat, loops, tri_verts)
+
+
+def read_corner_layers(arrays: _MeshArrays, mesh, sources, owner: str, warn) -> None:
+    """Read the UV maps and colour attributes that `sources` (AlbedoSource) sample, per triangle corner,
+    into `arrays` (once per mesh and name). A missing layer reads as zeros (black), with a warning."""
+    nt = arrays.pos.shape[0]
+    for src in sources:
+        if src.image_key and src.uv_map not in arrays.uv:
+            layers = mesh.uv_layers
+            layer = layers.get(src.uv_map) if src.uv_map else next((l for l in layers if l.active_render), None)
+            uv = np.zeros((nt, 3, 2), np.float32)
+            if layer is None:
+                warn(f"object '{owner}' has no UV map {repr(src.uv_map) if src.uv_map else ''}: "
+                     f"its texture is read at (0, 0)")
+            else:
+                per_loop = np.empty(len(mesh.loops) * 2, np.float32)
+                layer.uv.foreach_get("vector", per_loop)
+                uv = np.take(per_loop.reshape(-1, 2), arrays.loops, axis=0).reshape(nt, 3, 2)
+            arrays.uv[src.uv_map] = uv
+        if src.attribute is not None and src.attribute not in arrays.colors:
+            attrs = mesh.color_attributes
+            attr = attrs.get(src.attribute) if src.attribute else None
+            if not src.attribute and 0 <= attrs.render_color_index < len(attrs):
+                attr = attrs[attrs.render_color_index]
+            col = np.zeros((nt, 3, 3), np.float32)
+            if attr is None or attr.domain not in ("POINT", "CORNER"):
+                warn(f"object '{owner}' has no colour attribute {repr(src.attribute) if src.attribute else ''} "
+                     f"on points or corners: read as black")
+            else:
+                rgba = np.empty(len(attr.data) * 4, np.float32)
+                attr.data.foreach_get("color", rgba)       # linear for byte and float colours alike
+                index = arrays.loops if attr.domain == "CORNER" else arrays.tri_verts
+                col = np.take(rgba.reshape(-1, 4)[:, :3], index, axis=0).reshape(nt, 3, 3)
+            arrays.colors[src.attribute] = col
 
 
 def transform_instances(arrays: _MeshArrays, matrices: np.ndarray):
@@ -239,45 +279,192 @@ def _follow_reroutes(socket):
     return None
 
 
-def material_albedo(mat, warn) -> tuple[float, float, float]:
-    """Diffuse colour of a material, linear RGB. `warn(text)` is called for anything approximated."""
-    if mat is None:
-        return GREY
-    tree = mat.node_tree
-    if tree is None:
-        return tuple(float(c) for c in mat.diffuse_color[:3])
-    out = None
+@dataclass(frozen=True)
+class AlbedoSource:
+    """Where a material's diffuse colour comes from: a constant, an image sampled through a UV map, or a
+    colour attribute. Equal sources (same image, map, mapping and settings) compare equal."""
+
+    color: tuple = GREY                 # the constant colour; (1, 1, 1) when an image or attribute gives it
+    image_key: int = 0                  # as_pointer() of the image, 0: no image
+    uv_map: str = ""                    # UV map name, "": the mesh's active render map
+    uv_matrix: tuple | None = None      # ((a, b, c), (d, e, f)): (u, v) -> (a u + b v + c, d u + e v + f)
+    interpolation: str = "Linear"
+    extension: str = "REPEAT"
+    attribute: str | None = None        # colour attribute name ("": the active render one); None: none
+    image: object = field(default=None, compare=False, hash=False)   # the bpy Image itself
+    description: str = field(default="", compare=False, hash=False)  # how the colour is read, for the UI
+
+    @property
+    def varies(self) -> bool:
+        """True when the colour changes over the surface (per-corner data is needed)."""
+        return self.image_key != 0 or self.attribute is not None
+
+
+CONSTANT_GREY = AlbedoSource(GREY, description="0.8 grey")
+_INTERPOLATIONS = {"Linear": "Linear", "Closest": "Closest", "Cubic": "Linear", "Smart": "Linear"}
+
+
+def _output_node(tree):
     get_output = getattr(tree, "get_output_node", None)
-    if get_output is not None:
-        out = get_output("CYCLES") or get_output("ALL")
+    out = (get_output("CYCLES") or get_output("ALL")) if get_output is not None else None
     if out is None:
         outs = [n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial"]
         out = next((n for n in outs if n.is_active_output), outs[0] if outs else None)
+    return out
+
+
+def _node_label(node) -> str:
+    return f"node '{node.name}' ({node.bl_idname})"
+
+
+def material_albedo_source(mat, warn) -> AlbedoSource:
+    """How the diffuse colour of `mat` is read (Cycles' node tree; see `_color_source` for the nodes
+    understood). `warn(text)` is called, naming the material and node, for anything not read."""
+    if mat is None:
+        return CONSTANT_GREY
+    diffuse = tuple(float(c) for c in mat.diffuse_color[:3])
+    tree = mat.node_tree
+    out = _output_node(tree) if tree is not None else None
     if out is None:
-        return tuple(float(c) for c in mat.diffuse_color[:3])
+        return AlbedoSource(diffuse, description="viewport display colour (no node tree)")
     fed = _follow_reroutes(out.inputs.get("Surface"))
     if fed is None:
         # Cycles renders an unconnected surface as black; treat as the neutral grey but say so.
         warn(f"material '{mat.name}': no surface shader connected, using 0.8 grey")
-        return GREY
+        return CONSTANT_GREY
     node, _ = fed
     if node.bl_idname == "ShaderNodeBsdfPrincipled":
         sock = node.inputs.get("Base Color")
     elif node.bl_idname == "ShaderNodeBsdfDiffuse":
         sock = node.inputs.get("Color")
     else:
-        warn(f"material '{mat.name}': surface shader '{node.name}' ({node.bl_idname}) is not supported, "
-             f"using 0.8 grey")
-        return GREY
+        warn(f"material '{mat.name}': surface shader {_node_label(node)} is not supported, using 0.8 grey")
+        return CONSTANT_GREY
     if sock is None:
-        return GREY
-    if sock.is_linked:
-        src = _follow_reroutes(sock)
-        if src is not None and src[0].bl_idname == "ShaderNodeRGB":
-            return tuple(float(c) for c in src[0].outputs[0].default_value[:3])
-        warn(f"material '{mat.name}': base colour is driven by a node (texture?), using 0.8 grey")
-        return GREY
-    return tuple(float(c) for c in sock.default_value[:3])
+        return CONSTANT_GREY
+    if not sock.is_linked:
+        return AlbedoSource(tuple(float(c) for c in sock.default_value[:3]), description="constant colour")
+    source, problem = _color_source(_follow_reroutes(sock))
+    if source is None:
+        warn(f"material '{mat.name}': base colour {problem}, which Penumbra does not read: using 0.8 grey")
+        return CONSTANT_GREY
+    if problem:
+        warn(f"material '{mat.name}': {problem}")
+    return source
+
+
+def _color_source(fed) -> tuple[AlbedoSource | None, str]:
+    """(source, note) for the node output feeding a base colour; (None, what it is) when not read.
+
+    Read: RGB node; Image Texture (Flat projection, image from a file or generated/packed, Color output)
+    whose Vector comes from nothing (the active UV map), a UV Map node, Texture Coordinate's UV output, or
+    any chain of Mapping nodes (Point, Texture or Vector type, unlinked settings) ending in one of those;
+    Color Attribute node; Attribute node (Geometry type, Color output) naming a colour attribute."""
+    if fed is None:
+        return None, "comes from a muted or invalid link"
+    node, out_socket = fed
+    kind = node.bl_idname
+    if kind == "ShaderNodeRGB":
+        return AlbedoSource(tuple(float(c) for c in node.outputs[0].default_value[:3]),
+                            description="RGB node"), ""
+    if kind == "ShaderNodeVertexColor" and out_socket.name == "Color":
+        name = str(node.layer_name)
+        return AlbedoSource((1.0, 1.0, 1.0), attribute=name,
+                            description=f"colour attribute '{name or '(active render)'}'"), ""
+    if (kind == "ShaderNodeAttribute" and out_socket.name == "Color" and node.attribute_type == "GEOMETRY"
+            and node.attribute_name):
+        name = str(node.attribute_name)
+        return AlbedoSource((1.0, 1.0, 1.0), attribute=name, description=f"colour attribute '{name}'"), ""
+    if kind != "ShaderNodeTexImage":
+        return None, f"comes from {_node_label(node)}"
+    image = node.image
+    if out_socket.name != "Color":
+        return None, f"comes from the {out_socket.name} output of {_node_label(node)}"
+    if image is None:
+        return None, f"comes from {_node_label(node)} without an image"
+    if image.source not in ("FILE", "GENERATED"):
+        return None, f"comes from {_node_label(node)} with a {image.source} image ('{image.name}')"
+    if node.projection != "FLAT":
+        return None, f"comes from {_node_label(node)} with {node.projection} projection"
+    if image.size[0] == 0 or image.size[1] == 0:
+        return None, f"comes from image '{image.name}' which has no pixels (file missing?)"
+    uv_map, matrix, problem = _uv_chain(node.inputs["Vector"])
+    if problem:
+        return None, f"comes from {_node_label(node)} whose Vector {problem}"
+    note = ""
+    interpolation = _INTERPOLATIONS.get(node.interpolation, "Linear")
+    if interpolation != node.interpolation:
+        note = f"{_node_label(node)}: {node.interpolation} interpolation is read as Linear"
+    extension = node.extension if node.extension in ("REPEAT", "EXTEND", "CLIP", "MIRROR") else "REPEAT"
+    where = f"UV map '{uv_map}'" if uv_map else "the active UV map"
+    return AlbedoSource((1.0, 1.0, 1.0), image_key=image.as_pointer(), uv_map=uv_map, uv_matrix=matrix,
+                        interpolation=interpolation, extension=extension, image=image,
+                        description=f"image '{image.name}' through {where}"
+                                    f"{' and a Mapping' if matrix is not None else ''}"), note
+
+
+def _uv_chain(socket):
+    """(uv map name, 2x3 affine matrix or None, problem) for an Image Texture's Vector input."""
+    m = np.eye(3)
+    while True:
+        if not socket.is_linked:
+            if socket.node.bl_idname == "ShaderNodeTexImage":
+                return "", _affine_or_none(m), ""
+            return "", None, f"ends at an unlinked {_node_label(socket.node)}"
+        fed = _follow_reroutes(socket)
+        if fed is None:
+            return "", None, "has a muted or invalid link"
+        node, out = fed
+        if node.bl_idname == "ShaderNodeUVMap":
+            return str(node.uv_map), _affine_or_none(m), ""
+        if node.bl_idname == "ShaderNodeTexCoord" and out.name == "UV":
+            return "", _affine_or_none(m), ""
+        if node.bl_idname == "ShaderNodeMapping":
+            step = _mapping_matrix(node)
+            if step is None:
+                return "", None, f"goes through {_node_label(node)} of type {node.vector_type} or with linked settings"
+            m = m @ step
+            socket = node.inputs["Vector"]
+            continue
+        return "", None, f"comes from the {out.name} output of {_node_label(node)}"
+
+
+def _affine_or_none(m):
+    if np.allclose(m, np.eye(3), rtol=0.0, atol=1e-12):
+        return None
+    return tuple(tuple(float(x) for x in row) for row in m[:2])
+
+
+def _mapping_matrix(node):
+    """3x3 affine matrix of a Mapping node on (u, v, 1) (w = 0 in, z dropped out), or None if unsupported.
+
+    Blender's Mapping node: Point p' = T + R (S p); Texture p' = S^-1 (R^-1 (p - T)); Vector p' = R (S p),
+    with R the XYZ Euler rotation. Texture coordinates come in with z = 0, so only the x, y rows and the
+    u, v columns of the 3D transform matter."""
+    from mathutils import Euler
+
+    kind = node.vector_type
+    if kind not in ("POINT", "TEXTURE", "VECTOR"):
+        return None
+    names = ["Rotation", "Scale"] + (["Location"] if kind != "VECTOR" else [])
+    if any(node.inputs[n].is_linked for n in names):
+        return None
+    rot = np.array(Euler(tuple(node.inputs["Rotation"].default_value), "XYZ").to_matrix(), float)
+    scale = np.array(node.inputs["Scale"].default_value, float)
+    loc = np.array(node.inputs["Location"].default_value, float) if kind != "VECTOR" else np.zeros(3)
+    full = np.eye(4)
+    if kind == "TEXTURE":
+        if np.any(scale == 0.0):
+            return None
+        full[:3, :3] = np.diag(1.0 / scale) @ rot.T
+        full[:3, 3] = -full[:3, :3] @ loc
+    else:
+        full[:3, :3] = rot @ np.diag(scale)
+        full[:3, 3] = loc
+    out = np.eye(3)
+    out[:2, :2] = full[:2, :2]
+    out[:2, 2] = full[:2, 3]
+    return out
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -368,14 +555,43 @@ def light_texture(light, warn) -> np.ndarray | None:
             warn(f"light '{light.name}': emission colour comes from a node setup Penumbra does not read; "
                  "using the light colour")
             return None
-        w, h = image.size
-        pixels = np.empty(w * h * image.channels, np.float32)
-        image.pixels.foreach_get(pixels)
-        rgb = pixels.reshape(h, w, image.channels)[..., :3]
-        if not image.is_float and image.colorspace_settings.name == "sRGB":
-            rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-        return np.ascontiguousarray(rgb, dtype=np.float32)
+        return image_linear_rgb(image, warn)
     return None
+
+
+# sRGB → linear for the 256 values an 8-bit channel can hold (IEC 61966-2-1's decoding curve).
+_SRGB_BYTES = np.arange(256) / 255.0
+_SRGB_TO_LINEAR = np.where(_SRGB_BYTES <= 0.04045, _SRGB_BYTES / 12.92,
+                           ((_SRGB_BYTES + 0.055) / 1.055) ** 2.4).astype(np.float32)
+_LINEAR_SPACES = ("Linear", "Linear Rec.709", "Non-Color", "Raw", "Generic Data")
+
+
+def image_linear_rgb(image, warn) -> np.ndarray:
+    """(H, W, 3) float32 linear RGB of a bpy Image, row 0 at the bottom (as Blender stores it): `image_rgb`
+    with sRGB-encoded bytes decoded."""
+    rgb, encoded = image_rgb(image, warn)
+    return _SRGB_TO_LINEAR[rgb] if encoded else rgb
+
+
+def image_rgb(image, warn) -> tuple[np.ndarray, bool]:
+    """(pixels, srgb_encoded) of a bpy Image, row 0 at the bottom (as Blender stores it).
+
+    Float images are already scene-linear in memory: (H, W, 3) float32, False. 8-bit images hold values in
+    their colour space: linear and data spaces come back as float32 as they are (False); sRGB, and with a
+    warning any other space, as the (H, W, 3) uint8 bytes themselves (True), to be decoded after filtering
+    as Cycles does with 8-bit sRGB images (it interpolates the bytes, then converts; between a light and a
+    dark texel the two orders differ by up to 2x)."""
+    w, h = image.size
+    c = image.channels
+    pixels = np.empty(w * h * c, np.float32)
+    image.pixels.foreach_get(pixels)
+    rgb = pixels.reshape(h, w, c)[..., :3] if c >= 3 else np.repeat(pixels.reshape(h, w, c)[..., :1], 3, -1)
+    space = image.colorspace_settings.name
+    if not image.is_float and space not in _LINEAR_SPACES and not image.colorspace_settings.is_data:
+        if space != "sRGB":
+            warn(f"image '{image.name}': colour space '{space}' is decoded as sRGB")
+        return np.ascontiguousarray(np.rint(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)), True
+    return np.ascontiguousarray(rgb, dtype=np.float32), False
 
 
 def render_size(scene) -> tuple[int, int]:
@@ -432,8 +648,9 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
 
     objects: list[ObjectInfo] = []
     object_index: dict[tuple, int] = {}
-    albedo_tables: list[np.ndarray] = []
-    material_cache: dict[int, tuple] = {}
+    albedo_tables: list[tuple] = []          # per distinct slot list: one AlbedoSource per material slot
+    layers_read: set[tuple] = set()          # (mesh pointer, table id) whose UV / colour layers are read
+    material_cache: dict[int, AlbedoSource] = {}
     table_cache: dict[tuple, int] = {}
     # Per-instance lookup: (object name, instancer name, mesh pointer) -> (object id, albedo table id).
     # Instances are temporary Object copies whose pointers get reused, so names identify them.
@@ -466,13 +683,18 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
                 if mesh_ptr not in mesh_arrays:
                     mesh_arrays[mesh_ptr] = read_mesh(mesh)
                 group = groups[mesh_ptr] = ([], [], [])
+            if (mesh_ptr, ids[1]) not in layers_read:
+                layers_read.add((mesh_ptr, ids[1]))
+                sources = albedo_tables[ids[1]]
+                if mesh_arrays[mesh_ptr] is not None and any(src.varies for src in sources):
+                    read_corner_layers(mesh_arrays[mesh_ptr], mesh, sources, ob.name, warn_once)
             group[0].append(inst.matrix_world.copy())   # must copy: the iterator reuses the matrix
             group[1].append(ids[0])
             group[2].append(ids[1])
         elif ob_type == "LIGHT":
             lights.append(make_light(ob.name, ob.data, _matrix_np(inst.matrix_world), warn_once))
 
-    geometry = _assemble(groups, mesh_arrays, albedo_tables)
+    geometry, textures = _assemble(groups, mesh_arrays, albedo_tables, warn_once)
     geometry = sanitize(geometry, objects, warnings)
 
     if width is None or height is None:
@@ -483,7 +705,7 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
 
     # A scene without lights is not an error here; the pipeline warns (once) when it renders it.
     return SceneSnapshot(objects=objects, lights=lights, camera=camera, name=scene.name, warnings=warnings,
-                         **geometry)
+                         textures=textures, **geometry)
 
 
 def object_info(ob, parent) -> tuple[str, bool, bool, str]:
@@ -513,50 +735,127 @@ def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, materi
     mats = [slot.material for slot in ob.material_slots]
     if not mats:
         mats = list(mesh.materials)
-    colors = []
+    sources = []
     for mat in mats:
         mkey = mat.as_pointer() if mat is not None else 0
-        col = material_cache.get(mkey)
-        if col is None:
-            col = material_cache[mkey] = material_albedo(mat, warn_once)
-        colors.append(col)
-    tkey = tuple(colors) or (GREY,)
+        src = material_cache.get(mkey)
+        if src is None:
+            src = material_cache[mkey] = material_albedo_source(mat, warn_once)
+        sources.append(src)
+    tkey = tuple(sources) or (CONSTANT_GREY,)
     tid = table_cache.get(tkey)
     if tid is None:
         tid = table_cache[tkey] = len(albedo_tables)
-        albedo_tables.append(np.array(tkey, dtype=np.float32).reshape(-1, 3))
+        albedo_tables.append(tkey)
     return oid, tid
 
 
-def _assemble(groups, mesh_arrays, albedo_tables) -> dict:
-    pos_parts, nrm_parts, oid_parts, alb_parts = [], [], [], []
+class AlbedoTextures:
+    """The snapshot's albedo textures: one per (image, interpolation, extension), each image read once."""
+
+    def __init__(self, warn):
+        self.textures: list[AlbedoTexture] = []
+        self._index: dict[tuple, int] = {}
+        self._pixels: dict[int, tuple] = {}
+        self._warn = warn
+
+    def index(self, src: AlbedoSource) -> int:
+        key = (src.image_key, src.interpolation, src.extension)
+        i = self._index.get(key)
+        if i is None:
+            pixels = self._pixels.get(src.image_key)
+            if pixels is None:
+                pixels = self._pixels[src.image_key] = image_rgb(src.image, self._warn)
+            i = self._index[key] = len(self.textures)
+            self.textures.append(AlbedoTexture(src.image.name, pixels[0], src.interpolation, src.extension,
+                                               srgb=pixels[1]))
+        return i
+
+
+def table_arrays(arrays: _MeshArrays, sources: tuple, textures: AlbedoTextures):
+    """One mesh under one slot list: per-triangle albedo (t, 3) and, when a source varies over the surface,
+    (texture id (t,), uv (t, 3, 2), corner colour (t, 3, 3)); else None."""
+    mat = np.clip(arrays.mat, 0, len(sources) - 1)
+    albedo = np.array([src.color for src in sources], np.float32)[mat]
+    if not any(src.varies for src in sources):
+        return albedo, None
+    t = mat.shape[0]
+    tex = np.full(t, -1, np.int32)
+    uv = np.zeros((t, 3, 2), np.float32)
+    col = np.ones((t, 3, 3), np.float32)
+    for i, src in enumerate(sources):
+        sel = mat == i
+        if not src.varies or not sel.any():
+            continue
+        if src.image_key:
+            tex[sel] = textures.index(src)
+            coords = arrays.uv[src.uv_map][sel]
+            if src.uv_matrix is not None:
+                m = np.asarray(src.uv_matrix, np.float32)
+                coords = coords @ m[:, :2].T + m[:, 2]
+            uv[sel] = coords
+        if src.attribute is not None:
+            col[sel] = arrays.colors[src.attribute][sel]
+    return albedo, (tex, uv, col)
+
+
+def _assemble(groups, mesh_arrays, albedo_tables, warn) -> tuple[dict, list]:
+    """The geometry arrays of every mesh group (and the textures they sample)."""
+    textures = AlbedoTextures(warn)
+    pos_parts, nrm_parts, oid_parts, alb_parts, var_parts = [], [], [], [], []
     for mesh_ptr, (mats, oids, tids) in groups.items():
         arrays = mesh_arrays[mesh_ptr]
         if arrays is None:
             continue
         t = arrays.pos.shape[0]
-        pos, nrm, _ = transform_instances(arrays, _stack_matrices(mats))
+        pos, nrm, flipped = transform_instances(arrays, _stack_matrices(mats))
         pos_parts.append(pos)
         nrm_parts.append(nrm)
         oid_parts.append(np.repeat(np.asarray(oids, np.int32), t))
         tids = np.asarray(tids, np.int32)
-        unique = np.unique(tids)
-        if len(unique) == 1:
-            table = albedo_tables[unique[0]]
-            alb = np.broadcast_to(table[np.clip(arrays.mat, 0, len(table) - 1)], (len(tids), t, 3))
+        k = len(tids)
+        per_table = {int(tid): table_arrays(arrays, albedo_tables[tid], textures) for tid in np.unique(tids)}
+        if len(per_table) == 1:
+            alb = np.broadcast_to(next(iter(per_table.values()))[0], (k, t, 3))
         else:
-            alb = np.empty((len(tids), t, 3), np.float32)
-            for tid in unique:
-                table = albedo_tables[tid]
-                alb[tids == tid] = table[np.clip(arrays.mat, 0, len(table) - 1)]
+            alb = np.empty((k, t, 3), np.float32)
+            for tid, (table_albedo, _) in per_table.items():
+                alb[tids == tid] = table_albedo
         alb_parts.append(alb.reshape(-1, 3))
+        if all(var is None for _, var in per_table.values()):
+            var_parts.append(None)
+            continue
+        tex = np.full((k, t), -1, np.int32)
+        uv = np.zeros((k, t, 3, 2), np.float32)
+        col = np.ones((k, t, 3, 3), np.float32)
+        for tid, (_, var) in per_table.items():
+            if var is not None:
+                rows = tids == tid
+                tex[rows], uv[rows], col[rows] = var
+        if flipped.any():       # _flip swapped corners 1 and 2 of mirrored instances: so must their data be
+            uv[flipped] = uv[flipped][:, :, [0, 2, 1]]
+            col[flipped] = col[flipped][:, :, [0, 2, 1]]
+        var_parts.append((tex.reshape(-1), uv.reshape(-1, 3, 2), col.reshape(-1, 3, 3)))
     if not pos_parts:
-        return SceneSnapshot.empty_geometry()
+        return SceneSnapshot.empty_geometry(), []
     if len(pos_parts) == 1:
-        return dict(positions=pos_parts[0], normals=nrm_parts[0], object_id=oid_parts[0],
-                    albedo=np.ascontiguousarray(alb_parts[0]))
-    return dict(positions=np.concatenate(pos_parts), normals=np.concatenate(nrm_parts),
-                object_id=np.concatenate(oid_parts), albedo=np.concatenate(alb_parts))
+        geometry = dict(positions=pos_parts[0], normals=nrm_parts[0], object_id=oid_parts[0],
+                        albedo=np.ascontiguousarray(alb_parts[0]))
+    else:
+        geometry = dict(positions=np.concatenate(pos_parts), normals=np.concatenate(nrm_parts),
+                        object_id=np.concatenate(oid_parts), albedo=np.concatenate(alb_parts))
+    if any(v is not None for v in var_parts):
+        def part(i, v, n):
+            if v is not None:
+                return v[i]
+            return (np.full(n, -1, np.int32), np.zeros((n, 3, 2), np.float32), np.ones((n, 3, 3), np.float32))[i]
+        counts = [p.shape[0] for p in pos_parts]
+        tex, uv, col = (np.concatenate([part(i, v, n) for v, n in zip(var_parts, counts)]) for i in range(3))
+        if (tex >= 0).any():
+            geometry.update(texture_id=tex, uv=uv)
+        if not (col == 1.0).all():
+            geometry.update(corner_color=col)
+    return geometry, textures.textures
 
 
 def sanitize(geometry: dict, objects: list[ObjectInfo], warnings: list[str]) -> dict:

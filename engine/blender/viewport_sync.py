@@ -7,6 +7,7 @@ import numpy as np
 
 from ..core.snapshot import ObjectInfo
 from ..core.viewport_state import Instance, MeshPiece, SceneState
+from ..gpu.geometry import texture_order
 from ..render.viewport import ViewportSession
 
 
@@ -30,7 +31,7 @@ class ViewportScene:
                 dirty_objects.add(idb.name)
             elif isinstance(idb, bpy.types.Mesh):
                 dirty_meshes.add(idb.name)
-            elif isinstance(idb, (bpy.types.Material, bpy.types.NodeTree)):
+            elif isinstance(idb, (bpy.types.Material, bpy.types.NodeTree, bpy.types.Image)):
                 materials_changed = True
         warnings: list[str] = []
         objects: list[ObjectInfo] = []
@@ -81,17 +82,30 @@ def _read_piece(ob, extraction, warnings) -> MeshPiece | None:
     arrays = extraction.read_mesh(ob.data)
     if arrays is None:
         return None
-    colors = [extraction.material_albedo(slot.material, warnings.append) for slot in ob.material_slots]
-    table = np.array(colors or [extraction.GREY], np.float32).reshape(-1, 3)
-    albedo = table[np.clip(arrays.mat, 0, len(table) - 1)]
+    # The final render's reading of materials: constant colours, images through UV maps, colour attributes.
+    sources = tuple(extraction.material_albedo_source(slot.material, warnings.append)
+                    for slot in ob.material_slots) or (extraction.CONSTANT_GREY,)
+    if any(src.varies for src in sources):
+        extraction.read_corner_layers(arrays, ob.data, sources, ob.name, warnings.append)
+    textures = extraction.AlbedoTextures(warnings.append)
+    albedo, varying = extraction.table_arrays(arrays, sources, textures)
+    geometry = dict(positions=arrays.pos, normals=arrays.nrm.copy(), albedo=albedo,
+                    object_id=np.zeros(len(albedo), np.int32))
+    if varying is not None:
+        texture_id, uv, corner_color = varying
+        geometry.update(albedo=albedo[:, None, :] * corner_color, texture_id=texture_id, uv=uv)
     # The final render's clean-up, in object space: NaN/Inf and zero-area triangles dropped with a warning.
-    geometry = extraction.sanitize(dict(positions=arrays.pos, normals=arrays.nrm.copy(), albedo=albedo,
-                                         object_id=np.zeros(len(albedo), np.int32)),
-                                    [ObjectInfo(ob.name)], warnings)
+    geometry = extraction.sanitize(geometry, [ObjectInfo(ob.name)], warnings)
     if geometry["positions"].shape[0] == 0:
         return None
+    uv, ranges = None, []
+    if "texture_id" in geometry and (geometry["texture_id"] >= 0).any():
+        order, ranges = texture_order(geometry["texture_id"])
+        geometry = {k: v[order] for k, v in geometry.items()}
+        uv = np.ascontiguousarray(geometry["uv"])
     return MeshPiece(np.ascontiguousarray(geometry["positions"]), np.ascontiguousarray(geometry["normals"]),
-                     np.ascontiguousarray(geometry["albedo"]))
+                     np.ascontiguousarray(geometry["albedo"]), uv=uv, ranges=ranges,
+                     textures=textures.textures if ranges else [])
 
 
 class UpdateRecorder:

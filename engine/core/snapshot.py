@@ -97,13 +97,30 @@ class ObjectInfo:
 
 
 @dataclass
+class AlbedoTexture:
+    """An image a material's base colour is sampled from, per pixel, through the triangles' `uv`."""
+
+    name: str                       # the image's name, for messages
+    pixels: np.ndarray              # (H, W, 3) float32 linear RGB, or uint8 sRGB bytes when `srgb`; row 0 at
+                                    # v = 0 (the image's bottom row)
+    interpolation: str = "Linear"   # Linear (bilinear) | Closest
+    extension: str = "REPEAT"       # REPEAT | EXTEND (edge texels) | CLIP (black outside) | MIRROR
+    srgb: bool = False              # pixels are sRGB bytes, decoded after filtering (as Cycles does)
+
+
+@dataclass
 class SceneSnapshot:
     """Triangle soup plus lights and camera.
 
     positions: (T, 3, 3) float32 world-space corners, counter-clockwise seen from the front
     normals:   (T, 3, 3) float32 unit shading normals per corner (smooth or flat as the mesh says)
     object_id: (T,) int32 index into `objects`
-    albedo:    (T, 3) float32 linear RGB diffuse colour
+    albedo:    (T, 3) float32 linear RGB diffuse colour (a factor on the texture / colour attribute, if any)
+
+    Textured base colours (all three None when no triangle has one):
+    uv:           (T, 3, 2) float32 texture coordinates per corner, the material's Mapping already applied
+    texture_id:   (T,) int32 index into `textures`, -1 where the albedo is not textured
+    corner_color: (T, 3, 3) float32 linear RGB per corner (a colour attribute) multiplying the albedo
     """
 
     positions: np.ndarray
@@ -115,6 +132,10 @@ class SceneSnapshot:
     camera: Camera
     name: str = "scene"
     warnings: list[str] = field(default_factory=list)
+    uv: np.ndarray | None = None
+    texture_id: np.ndarray | None = None
+    corner_color: np.ndarray | None = None
+    textures: list[AlbedoTexture] = field(default_factory=list)
 
     @property
     def triangle_count(self) -> int:

@@ -2,18 +2,23 @@
 Plain data, no bpy and no GL."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 
 @dataclass
 class MeshPiece:
-    """One mesh in object space, ready to upload: positions/normals (T,3,3), albedo (T,3), local bounds."""
+    """One mesh in object space, ready to upload: positions/normals (T,3,3), albedo (T,3) or per corner
+    (T,3,3), local bounds. Textured: triangles ordered by texture, `uv` (T,3,2), `ranges` of
+    (index into `textures` or -1, first triangle, count)."""
     positions: np.ndarray
     normals: np.ndarray
     albedo: np.ndarray
     version: int = 0
+    uv: np.ndarray | None = None
+    ranges: list = field(default_factory=list)
+    textures: list = field(default_factory=list)        # AlbedoTexture
 
     @property
     def bounds(self) -> np.ndarray:

@@ -304,10 +304,10 @@ def set_measurement_output(st: "_Settings", scene, world, material, view_layer, 
 
 
 @contextmanager
-def measurement_scene(scene, view_layer, width: int, height: int, prefix: str):
-    """Set `scene` up for a measurement render (black world, white Lambert override, exact resolution, one
-    view layer, 32-bit multilayer EXR) and yield (settings recorder, temp folder). On exit every setting is
-    restored and the temporary material, world and files are removed, also on error."""
+def measurement_scene(scene, view_layer, width: int, height: int, prefix: str, *, white: bool = True):
+    """Set `scene` up for a measurement render (black world, white Lambert override unless `white` is False,
+    exact resolution, one view layer, 32-bit multilayer EXR) and yield (settings recorder, temp folder). On
+    exit every setting is restored and the temporary material, world and files are removed, also on error."""
     import bpy
 
     from .scenes import black_world
@@ -315,8 +315,9 @@ def measurement_scene(scene, view_layer, width: int, height: int, prefix: str):
     temp_ids = []
     tmpdir = tempfile.mkdtemp(prefix=prefix)
     try:
-        mat = _make_material()
-        temp_ids.append(("materials", mat))
+        mat = _make_material() if white else None
+        if mat is not None:
+            temp_ids.append(("materials", mat))
         world = black_world(prefix + "black")
         temp_ids.append(("worlds", world))
         set_measurement_output(st, scene, world, mat, view_layer, width, height)
@@ -339,25 +340,8 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
 
     global render_count
     r = scene.render
-    cy = scene.cycles
     with measurement_scene(scene, view_layer, width, height, "penumbra_ref_") as (st, tmpdir):
-        st.set(r, "engine", "CYCLES")
-        st.set(cy, "device", "CPU")
-        st.set(cy, "samples", int(samples))
-        st.set(cy, "use_adaptive_sampling", False)
-        st.set(cy, "use_denoising", False)
-        st.set(cy, "seed", int(seed))
-        st.set(cy, "use_animated_seed", False)
-        st.set(cy, "max_bounces", 0)
-        st.set(cy, "sample_clamp_direct", 0.0)
-        st.set(cy, "light_sampling_threshold", 0.0)
-        # Cycles ignores filter_width for BOX (always 1 px), so a narrow Gaussian is the point sampler.
-        st.set(cy, "pixel_filter_type", filter_type)
-        st.set(cy, "filter_width", float(filter_width))
-        for ob in scene.objects:
-            if ob.type == "LIGHT" and ob.visible_camera:
-                st.set(ob, "visible_camera", False)  # the light's own emitter must not appear in the image
-
+        _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width)
         images = []
         seconds = []
         for unshadowed in (False, True):
@@ -381,6 +365,52 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
                 raise RuntimeError(f"Cycles wrote no image to {path}")
             images.append(read_exr_combined(path))
         return images[0], images[1], seconds
+
+
+def _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width):
+    """Cycles settings of every reference render (through `st`, so they are undone): CPU, fixed samples and
+    seed, direct light only, no clamping or light threshold, the given pixel filter, lights unseen."""
+    cy = scene.cycles
+    st.set(scene.render, "engine", "CYCLES")
+    st.set(cy, "device", "CPU")
+    st.set(cy, "samples", int(samples))
+    st.set(cy, "use_adaptive_sampling", False)
+    st.set(cy, "use_denoising", False)
+    st.set(cy, "seed", int(seed))
+    st.set(cy, "use_animated_seed", False)
+    st.set(cy, "max_bounces", 0)
+    st.set(cy, "sample_clamp_direct", 0.0)
+    st.set(cy, "light_sampling_threshold", 0.0)
+    # Cycles ignores filter_width for BOX (always 1 px), so a narrow Gaussian is the point sampler.
+    st.set(cy, "pixel_filter_type", filter_type)
+    st.set(cy, "filter_width", float(filter_width))
+    for ob in scene.objects:
+        if ob.type == "LIGHT" and ob.visible_camera:
+            st.set(ob, "visible_camera", False)  # the light's own emitter must not appear in the image
+
+
+def cycles_combined(scene=None, *, samples: int = 256, seed: int = 0, width: int, height: int,
+                    filter_type: str = "GAUSSIAN", filter_width: float = POINT_FILTER_WIDTH,
+                    view_layer=None) -> np.ndarray:
+    """Cycles' Combined (H, W, 3), row 0 = bottom, of `scene` with its own materials (textures included), direct
+    light only and the reference's other settings: what Penumbra's Combined estimates. Not cached (the cache
+    key does not cover materials and images)."""
+    import bpy
+
+    global render_count
+    scene = scene or bpy.context.scene
+    view_layer = view_layer or _pick_view_layer(scene)
+    with measurement_scene(scene, view_layer, width, height, "penumbra_rgb_", white=False) as (st, tmpdir):
+        _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width)
+        path = os.path.join(tmpdir, "combined.exr")
+        st.set(scene.render, "filepath", path)
+        bpy.ops.render.render(write_still=True, scene=scene.name, layer=view_layer.name)
+        if interrupted.is_set():
+            raise KeyboardInterrupt("Cycles render interrupted")
+        render_count += 1
+        if not os.path.exists(path):
+            raise RuntimeError(f"Cycles wrote no image to {path}")
+        return read_exr_combined(path)
 
 
 def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: int | None = None,

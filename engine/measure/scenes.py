@@ -6,7 +6,8 @@ Every scene is deterministic (the only randomness is seeded) and has
 * one light named "Light" (an AREA light emitting along its local -Z; `room` has a sphere light,
   `flattened` and `slab` a sun), powered so that the unshadowed ground near
   the shadow has a Lambertian radiance of about ``TARGET_RADIANCE`` (ground albedo ``GROUND_ALBEDO``);
-* a large receiver plane named "Ground" (z = 0, albedo 0.8 grey) that fills the camera's view;
+* a large receiver plane named "Ground" (z = 0, albedo 0.8 grey; `textured` a checker image) that fills the
+  camera's view;
 * a camera named "Camera" framing the shadow so that the penumbra covers a good part of the image;
 * a black world, so that in Cycles the only direct light is the area light.
 
@@ -550,6 +551,70 @@ def _build_slab(scene):
 
 Builder = Callable[[bpy.types.Scene], None]
 
+CHECKER_RGB = ((0.85, 0.8, 0.7), (0.15, 0.25, 0.45))   # the textured ground's two squares, sRGB values
+
+
+def checker_image(name: str, size: int = 64, cells: int = 8, colours=CHECKER_RGB) -> bpy.types.Image:
+    """An 8-bit sRGB checker image made in code (`cells` × `cells` squares), packed into the file so a saved
+    .blend keeps it."""
+    img = bpy.data.images.new(name, size, size, alpha=False, float_buffer=False)
+    y, x = np.mgrid[0:size, 0:size] * cells // size
+    rgba = np.ones((size, size, 4), np.float32)
+    rgba[..., :3] = np.where(((x + y) % 2 == 0)[..., None], colours[0], colours[1])
+    img.pixels.foreach_set(rgba.ravel())
+    img.pack()
+    return img
+
+
+def textured_material(name: str, image, *, repeats: float = 1.0, angle: float = 0.0, offset=(0.0, 0.0),
+                      interpolation: str = "Linear", extension: str = "REPEAT") -> bpy.types.Material:
+    """diffuse_material whose Base Color is an Image Texture fed by the UV map through a Mapping node (Point
+    type): the image repeats `repeats` times across the UV square, turned by `angle` (radians, about Z) and
+    moved by `offset`."""
+    mat = diffuse_material(name, (1.0, 1.0, 1.0))
+    nt = mat.node_tree
+    bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image, tex.interpolation, tex.extension = image, interpolation, extension
+    uv = nt.nodes.new("ShaderNodeUVMap")
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (repeats, repeats, 1.0)
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, angle)
+    mapping.inputs["Location"].default_value = (offset[0], offset[1], 0.0)
+    nt.links.new(uv.outputs["UV"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    return mat
+
+
+def set_planar_uv(obj, scale: float, offset=(0.5, 0.5)) -> None:
+    """A UV map "UVMap" on `obj`'s mesh: (u, v) = offset + (x, y) / scale of each corner's object position."""
+    me = obj.data
+    layer = me.uv_layers.new(name="UVMap")
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    corner_vert = np.empty(len(me.loops), np.int32)
+    me.loops.foreach_get("vertex_index", corner_vert)
+    uv = co.reshape(-1, 3)[corner_vert, :2] / scale + np.asarray(offset, np.float32)
+    layer.uv.foreach_set("vector", uv.astype(np.float32).ravel())
+
+
+def _build_textured(scene):
+    """The `plane` scene on a checkered ground: an 8-bit sRGB checker image (made in code) through UV Map ->
+    Mapping (scaled, turned 20 degrees, moved) -> Image Texture, one square per 25 cm; the plate is plain
+    orange."""
+    ground = _add_ground(scene, material=textured_material("CheckerMaterial", checker_image("Checker"),
+                                                           repeats=20.0, angle=math.radians(20.0),
+                                                           offset=(0.3, 0.1)))
+    set_planar_uv(ground, scale=40.0)
+    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
+    s = 0.5
+    _mesh_object(scene, "Occluder", [(-s, -s, 0.8), (s, -s, 0.8), (s, s, 0.8), (-s, s, 0.8)],
+                 [(0, 1, 2, 3)], occ)
+    _add_area_light(scene, (0, 0, 2.5), (0, 0, 0), 1.5, reference_point=(1.2, 0.0, 0.0))
+    _add_camera(scene, (0.0, -2.1, 2.0), (0.0, -0.2, 0.0), lens=35)
+
+
 SCENES: "OrderedDict[str, tuple[Builder, str]]" = OrderedDict([
     ("plane", (_build_plane, "square plate parallel to a square area light: almost all penumbra")),
     ("suzanne", (_build_suzanne, "Suzanne (subdivided, smooth) floating over the ground")),
@@ -564,6 +629,7 @@ SCENES: "OrderedDict[str, tuple[Builder, str]]" = OrderedDict([
     ("room", (_build_room, "sphere light inside a closed room with a box and a ball: receivers all around")),
     ("flattened", (_build_flattened, "casters with one scale axis 0 (flat torus, flat cube) under a sun")),
     ("slab", (_build_slab, "thin upright slab lit 10 deg off edge-on by a 0.5 rad sun")),
+    ("textured", (_build_textured, "the plane scene on a checker-textured ground (image through UV Map and Mapping)")),
 ])
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..core import lightview
 from ..gpu.context import Cancelled, GpuWorker
-from ..gpu.geometry import Draw, SceneGeometry, interleave
+from ..gpu.geometry import Draw, SceneGeometry, interleave, upload_textures
 from ..core.settings import RenderSettings
 from ..core.snapshot import Camera, ObjectInfo, SceneSnapshot
 from ..core.viewport_state import Instance, MeshPiece, SceneState
@@ -33,6 +33,7 @@ class ViewportGeometry(SceneGeometry):
     def __init__(self, ctx):
         self._ctx = ctx
         self._buffers: dict[tuple, tuple] = {}     # key → (vbo, vertices, version, local bounds)
+        self._textured: dict[tuple, tuple] = {}    # key → (uv buffer, [(map or None, first, count)], GL objects)
         self._instances: list[Instance] = []
         self._objects: list[ObjectInfo] = []
         self.uploads: dict[tuple, int] = {}        # key → times uploaded (tests count these)
@@ -41,14 +42,22 @@ class ViewportGeometry(SceneGeometry):
         for key in list(self._buffers):
             if key not in state.pieces:
                 self._buffers.pop(key)[0].release()
+                self._release_textures(key)
         for key, piece in state.pieces.items():
             current = self._buffers.get(key)
             if current is not None and current[2] == piece.version:
                 continue
             if current is not None:
                 current[0].release()
+                self._release_textures(key)
             vbo = self._ctx.buffer(interleave(piece.positions, piece.normals, piece.albedo))
             self._buffers[key] = (vbo, 3 * piece.positions.shape[0], piece.version, piece.bounds)
+            if piece.ranges and piece.uv is not None:
+                # Each mesh uploads its own images (shared between its slots, not between meshes).
+                uv = self._ctx.buffer(np.ascontiguousarray(piece.uv, np.float32).tobytes())
+                maps, images, _ = upload_textures(self._ctx, piece.textures)
+                ranges = [(maps[i] if i >= 0 else None, 3 * first, 3 * n) for i, first, n in piece.ranges]
+                self._textured[key] = (uv, ranges, [*maps, *images, uv])
             self.uploads[key] = self.uploads.get(key, 0) + 1
         self._instances, self._objects = state.instances, state.objects
         self.has_casters = any(self._objects[i.object_index].caster for i in self._instances)
@@ -66,9 +75,20 @@ class ViewportGeometry(SceneGeometry):
             r = m[:3, :3]
             det = float(np.linalg.det(r))
             normal = np.linalg.pinv(r).T
-            out.append(Draw(vbo, None, vertices, tuple(m.astype(np.float32).T.ravel()),
-                            tuple(normal.astype(np.float32).T.ravel()), det < 0.0))
+            model, normal = tuple(m.astype(np.float32).T.ravel()), tuple(normal.astype(np.float32).T.ravel())
+            textured = self._textured.get(inst.key)
+            if textured is None:
+                out.append(Draw(vbo, None, vertices, model, normal, det < 0.0))
+                continue
+            uv, ranges, _ = textured
+            out.extend(Draw(vbo, None, count, model, normal, det < 0.0, first=first, texture=tex, uv=uv)
+                       for tex, first, count in ranges)
         return out
+
+    def _release_textures(self, key):
+        textured = self._textured.pop(key, None)
+        for obj in (textured[2] if textured is not None else ()):
+            obj.release()
 
     def object_bounds(self):
         out = np.empty((len(self._objects), 2, 3))
@@ -83,6 +103,8 @@ class ViewportGeometry(SceneGeometry):
     def release(self):
         for vbo, *_ in self._buffers.values():
             vbo.release()
+        for key in list(self._textured):
+            self._release_textures(key)
         self._buffers.clear()
 
 

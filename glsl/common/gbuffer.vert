@@ -2,6 +2,7 @@
 in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_albedo;
+in vec2 in_uv;                             // texture coordinates (draws without a texture leave it unbound)
 
 uniform mat4 u_view;
 uniform mat4 u_view_proj;
@@ -11,6 +12,7 @@ uniform mat3 u_normal_matrix = mat3(1.0);
 out vec3 v_position;
 out vec3 v_normal;
 out vec3 v_albedo;
+out vec2 v_uv;
 out float v_depth;
 
 void main() {
@@ -18,6 +20,7 @@ void main() {
     v_position = world.xyz;
     v_normal = u_normal_matrix * in_normal;
     v_albedo = in_albedo;
+    v_uv = in_uv;
     v_depth = -(u_view * world).z;
     gl_Position = u_view_proj * world;
 }

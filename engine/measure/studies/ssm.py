@@ -11,7 +11,10 @@ varies:
   lateral  occluder moved sideways under the light (§4.2.5)
   vertical occluder from touching the receiver to almost touching the light (§4.2.6)
 and the SSM time (its maps, scatter and projection stages, ms) is recorded beside every error (§5.2.2,
-§5.2.3). The work budget is lifted so that every map size is really used. Writes DIR/ssm_study.json,
+§5.2.3). The work budget is lifted so that every map size is really used. Each scene's Cycles noise floor
+(the same mae_shadow of the reference itself against a NOISE_SPP_FACTOR× higher-spp Cycles render) is drawn
+as a horizontal line on the map-size plot, whose error axis starts at 0, so a reader can judge whether
+differences between map sizes matter. Writes DIR/ssm_study.json,
 DIR/ssm_study.md and one PNG per plot, each file atomically (temporary name, then rename).
 
 Needs bpy (scene variants and the Cycles reference; references are cached on disk).
@@ -37,6 +40,7 @@ STUDY_MAP = 128                                         # the paper's bitmap for
 PASSES = ("ONE", "TWO")
 OCCLUDER = {"plane": "Occluder", "suzanne": "Suzanne"}
 SSM_STAGES = ("ssm_maps", "ssm_scatter", "ssm_project")
+NOISE_SPP_FACTOR = 4                                    # the noise floor's better reference: 4× the samples
 
 
 def _world_bounds(obj):
@@ -97,6 +101,16 @@ def _measure(sc, settings_list, samples: int, repeats: int):
     return rows
 
 
+def noise_floor(sc, samples: int) -> dict:
+    """mae_shadow of the `samples`-spp Cycles reference against a NOISE_SPP_FACTOR× higher-spp one: the error
+    a perfect technique would still show against the reference (both renders cached)."""
+    from .. import metrics, reference
+    ref = reference.cycles_visibility(sc, samples=samples)
+    better = reference.cycles_visibility(sc, samples=samples * NOISE_SPP_FACTOR)
+    m = metrics.compare(ref.visibility, better.visibility, ref.mask & better.mask)
+    return {"mae_shadow": m["mae_shadow"], "n_shadow": m["n_shadow"], "samples": samples * NOISE_SPP_FACTOR}
+
+
 def run(out: Path, scene_names=("plane", "suzanne"), size: int = 128, samples: int = 64, repeats: int = 1,
         map_sizes=MAP_SIZES, light_fractions=LIGHT_FRACTIONS, lateral=LATERAL, vertical=VERTICAL,
         log=print) -> dict:
@@ -110,6 +124,7 @@ def run(out: Path, scene_names=("plane", "suzanne"), size: int = 128, samples: i
         sc, _ = _variant(name, size)
         configs = [(n, p) for n in map_sizes for p in PASSES]
         rows = _measure(sc, [base.with_(ssm_map_size=n, ssm_passes=p) for n, p in configs], samples, repeats)
+        results.setdefault("noise_floor", {})[name] = noise_floor(sc, samples)
         for (n, p), row in zip(configs, rows):
             studies.setdefault("map", []).append({"scene": name, "passes": p, "x": n, **row})
         log(f"[{time.time() - t0:6.0f}s] {name}: map sizes done")
@@ -144,28 +159,45 @@ PLOTS = (
 )
 
 
-def write(out: Path, results: dict) -> None:
-    import io
+def figure(results: dict, key: str, metric: str, xlabel: str, ylabel: str, title: str):
+    """The matplotlib figure of one PLOTS entry (None without rows): one line per scene and passes; error
+    axes start at 0, and the map-size error plot draws each scene's Cycles noise floor."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    rows = results["studies"].get(key, [])
+    if not rows:
+        return None
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+    for i, scene in enumerate(results["scenes"]):
+        for passes, style in (("ONE", "o-"), ("TWO", "s--")):
+            pts = sorted((r["x"], r[metric]) for r in rows if r["scene"] == scene and r["passes"] == passes)
+            if pts:
+                ax.plot(*zip(*pts), style, label=f"{scene}, {passes.lower()} pass")
+        floor = (results.get("noise_floor") or {}).get(scene)
+        if key == "map" and metric == "mae_shadow" and floor and floor.get("mae_shadow") is not None \
+                and math.isfinite(floor["mae_shadow"]):
+            ax.axhline(floor["mae_shadow"], color=f"C{2 * i}", linestyle=":", linewidth=1.2,
+                       label=f"{scene}: Cycles noise floor ({results['samples']} vs {floor['samples']} spp)")
+    if metric == "mae_shadow":
+        ax.set_ylim(bottom=0.0)     # from 0: differences of 1e-5 must not fill the plot's height
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def write(out: Path, results: dict) -> None:
+    import io
+    import matplotlib.pyplot as plt
     out.mkdir(parents=True, exist_ok=True)
     for key, metric, xlabel, ylabel, filename, title in PLOTS:
-        rows = results["studies"].get(key, [])
-        if not rows:
+        fig = figure(results, key, metric, xlabel, ylabel, title)
+        if fig is None:
             continue
-        fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
-        for scene in results["scenes"]:
-            for passes, style in (("ONE", "o-"), ("TWO", "s--")):
-                pts = sorted((r["x"], r[metric]) for r in rows if r["scene"] == scene and r["passes"] == passes)
-                if pts:
-                    ax.plot(*zip(*pts), style, label=f"{scene}, {passes.lower()} pass")
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel(ylabel)
-        ax.set_title(title, fontsize=10)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-        fig.tight_layout()
         buf = io.BytesIO()
         fig.savefig(buf, format="png")
         plt.close(fig)
@@ -179,6 +211,12 @@ def markdown(results: dict) -> str:
              f"{results['samples']} spp", ""]
     names = {"map": "occluder-map size", "light": "light size (m)", "lateral": "lateral offset (m)",
              "vertical": "vertical position (0 receiver … 1 light)"}
+    floors = results.get("noise_floor") or {}
+    if floors:
+        lines += ["Cycles noise floor (mae_shadow of the reference against a render with more samples):", ""]
+        lines += [f"- {scene}: {f['mae_shadow']:.4f} ({results['samples']} vs {f['samples']} spp, "
+                  f"{f['n_shadow']} px)" for scene, f in floors.items()]
+        lines.append("")
     for key, label in names.items():
         rows = results["studies"].get(key, [])
         if not rows:
