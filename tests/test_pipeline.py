@@ -149,3 +149,39 @@ def test_a_stop_request_cancels_the_frame():
         pipeline.render(floating_plane(64), RenderSettings(technique="REFERENCE", shadow_map_size=1024)
                         .with_(averaged_light_samples=4096), should_stop=should_stop)
     assert calls
+
+
+@pytest.mark.parametrize("facing", ["down", "sideways", "away"])
+def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
+    """The per-light lit test and receiver box come from a GPU reduction (render/lit_bounds.comp); they must
+    equal what the whole irradiance image read back gives: the exact float32 min and max of the lit pixels."""
+    from penumbra.engine.core.shading import light_defines, light_uniforms
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    snap = floating_plane(48)
+    m = snap.lights[0].matrix
+    if facing == "sideways":        # emits along +X: only the ground at x > 0 is lit
+        m[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]
+    elif facing == "away":          # emits straight up: nothing is lit
+        m[:3, :3] = np.diag([1.0, -1.0, -1.0])
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings())
+        try:
+            irradiance = frame.texture((frame.width, frame.height), 4)
+            light = snap.lights[0]
+            frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
+                           defines=light_defines(light))
+            gpu = pipeline._lit_bounds(frame, irradiance, frame.buffer(bytes(pipeline._BOUNDS_BYTES)))
+            lit = (frame.read(irradiance)[..., 3] > 0) & (frame.read(frame.gbuffer["g_position"])[..., 3] > 0)
+            xyz = frame.read(frame.gbuffer["g_position"])[..., :3][lit]
+            return gpu, lit, xyz
+        finally:
+            frame.release()
+    gpu, lit, xyz = GpuWorker.get().submit(job).result()
+    if facing == "away":
+        assert not lit.any() and gpu is None
+        return
+    assert 0 < lit.sum() < lit.size if facing == "sideways" else lit.sum() > 0
+    np.testing.assert_array_equal(gpu[0], xyz.min(axis=0).astype(np.float64))
+    np.testing.assert_array_equal(gpu[1], xyz.max(axis=0).astype(np.float64))

@@ -253,14 +253,18 @@ class Frame:
 
     # ---- compute passes --------------------------------------------------------------------------------
     def dispatch(self, compute: str, uniforms: dict | None = None, samplers: dict | None = None,
-                 images: dict | None = None, defines: dict | None = None, size=None) -> None:
+                 images: dict | None = None, defines: dict | None = None, size=None,
+                 buffers: dict | None = None) -> None:
         """Run glsl/`compute` once per image pixel. `samplers`: uniform name → texture; `images`: binding →
-        texture (bound read-write). The G-buffer is always bound under its own names."""
+        texture (bound read-write); `buffers`: binding → storage buffer. The G-buffer is always bound under
+        its own names."""
         prog = program(self.worker, compute=compute, defines=defines)
         w, h = size or (self.width, self.height)
         bind_samplers(prog, {**self.gbuffer, **(samplers or {})})
         for binding, tex in (images or {}).items():
             tex.bind_to_image(binding, read=True, write=True)
+        for binding, buf in (buffers or {}).items():
+            buf.bind_to_storage_buffer(binding)
         set_uniforms(prog, {"u_image_size": (w, h), **(uniforms or {})})
         prog.run((w + 7) // 8, (h + 7) // 8, 1)
         self.ctx.memory_barrier()
