@@ -160,7 +160,7 @@ def cmd_render(args) -> int:
     bar = ProgressBar(f"{snap.name} {settings.technique}")
     t1 = time.perf_counter()
     try:
-        result = pipeline.render(snap, settings, on_progress=bar)
+        result = pipeline.render(snap, settings, on_progress=bar, stage_times=True)   # it prints them
     except ValueError as exc:           # e.g. an image too large for the GPU (engine/gpu/frame.py)
         print(f"penumbra: {exc}", file=sys.stderr)
         return 2

@@ -185,3 +185,18 @@ def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
     assert 0 < lit.sum() < lit.size if facing == "sideways" else lit.sum() > 0
     np.testing.assert_array_equal(gpu[0], xyz.min(axis=0).astype(np.float64))
     np.testing.assert_array_equal(gpu[1], xyz.max(axis=0).astype(np.float64))
+
+
+def test_the_gpu_is_synchronised_only_when_stage_times_are_asked(monkeypatch):
+    """A normal render waits for the GPU only where it reads a result back; ctx.finish() after every timed
+    stage is for the bench's per-stage times (pipeline.render(stage_times=True))."""
+    import moderngl
+    calls = []
+    original = moderngl.Context.finish
+    monkeypatch.setattr(moderngl.Context, "finish", lambda self: (calls.append(1), original(self))[1])
+    snap = floating_plane(32)
+    settings = RenderSettings(technique="REFERENCE").with_(averaged_light_samples=4)
+    pipeline.render(snap, settings)
+    assert calls == []
+    pipeline.render(snap, settings, stage_times=True)
+    assert len(calls) > 8           # upload, G-buffer, irradiance, readbacks, 4 × (map, accumulate), …

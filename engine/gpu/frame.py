@@ -90,13 +90,17 @@ def check_image_size(ctx, width: int, height: int) -> None:
 
 
 class Timings(dict):
-    """Milliseconds per stage, summed over lights and samples. `stage()` times a block after ctx.finish():
-    llvmpipe gives no useful GL timer queries, so wall clock around a finished pipeline it is. Nested stages
-    count once: an outer stage is charged only the time its inner stages did not claim."""
+    """Milliseconds per stage, summed over lights and samples. With `sync` (per-stage timing asked for: the
+    bench), `stage()` times a block after ctx.finish(): llvmpipe gives no useful GL timer queries, so wall
+    clock around a finished pipeline it is. Without it (a normal render, the viewport) nothing waits for the
+    GPU here, and a stage's time is what the CPU spent issuing it: GPU work lands in whichever later stage
+    reads a result back. Nested stages count once: an outer stage is charged only the time its inner stages
+    did not claim."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, sync: bool = True):
         super().__init__()
         self._ctx = ctx
+        self.sync = sync
         self._inner: list[float] = []
 
     @contextmanager
@@ -106,7 +110,8 @@ class Timings(dict):
         try:
             yield
         finally:
-            self._ctx.finish()
+            if self.sync:
+                self._ctx.finish()
             elapsed = (time.perf_counter() - start) * 1000.0
             inner = self._inner.pop()
             if self._inner:
@@ -117,14 +122,15 @@ class Timings(dict):
 class Frame:
     """Everything a technique needs on the GPU for one camera image."""
 
-    def __init__(self, worker, snap: SceneSnapshot, settings, geometry: SceneGeometry | None = None):
+    def __init__(self, worker, snap: SceneSnapshot, settings, geometry: SceneGeometry | None = None,
+                 stage_times: bool = False):
         self.worker = worker
         self.ctx = ctx = worker.ctx
         self.snap = snap
         self.settings = settings
         self.width, self.height = snap.camera.width, snap.camera.height
         check_image_size(ctx, self.width, self.height)
-        self.timings = Timings(ctx)
+        self.timings = Timings(ctx, sync=stage_times)     # GPU waits only when per-stage times are asked
         self._owned: list = []
         self._per_light: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline

@@ -4,8 +4,8 @@ Cycles itself (and optionally EEVEE) at a few sample counts on the same scene an
 Per scene: build it, extract the snapshot once, load (or render and cache) the Cycles reference and its noise
 floor (the same metrics between two reference seeds). Per technique × configuration: one warm-up frame (its
 time is reported apart as the first-frame time: shader compilation, first uploads), then N timed frames; the
-time reported is the median wall clock of `pipeline.render` (which waits for the GPU), with per-stage
-medians beside it, and the error is `metrics.compare` of the Visibility pass against the reference.
+time reported is the median wall clock of `pipeline.render` (which returns once the passes are read back), with
+the stage times of one more frame synchronised after every stage beside it, and the error is `metrics.compare` of the Visibility pass against the reference.
 
 Peers: Cycles at 1, 4, 16, … samples, rendered fresh (not cached, seed `PEER_SEED`, unlike the reference's
 seeds), timed as a user pays for one shadowed image (the render of the shadowed half of the reference pair,
@@ -163,7 +163,9 @@ def _median(xs) -> float:
 
 def time_ours(snap, settings: RenderSettings, repeats: int, *, on_frame=None,
               budget_s: float | None = CONFIG_BUDGET_S) -> dict:
-    """Warm-up frame, then up to `repeats` timed frames (fewer when they would exceed `budget_s`, never 0)."""
+    """Warm-up frame, then up to `repeats` timed frames (fewer when they would exceed `budget_s`, never 0),
+    as a user gets them (the GPU synchronised only where a result is read back); then one frame with per-stage
+    synchronisation (pipeline.render's stage_times) for the stage breakdown."""
     t0 = time.perf_counter()
     result = pipeline.render(snap, settings)
     first_ms = (time.perf_counter() - t0) * 1000.0
@@ -172,14 +174,14 @@ def time_ours(snap, settings: RenderSettings, repeats: int, *, on_frame=None,
         n = max(1, min(n, int(budget_s * 1000.0 // max(first_ms, 1e-3))))
     if on_frame:
         on_frame(1, n + 1)
-    times, stages = [], []
+    times = []
     for i in range(n):
         t0 = time.perf_counter()
         result = pipeline.render(snap, settings)
         times.append((time.perf_counter() - t0) * 1000.0)
-        stages.append(result.timings)
         if on_frame:
             on_frame(i + 2, n + 1)
+    stages = [pipeline.render(snap, settings, stage_times=True).timings]
     names = [s for s in STAGES if any(s in st for st in stages)]
     names += sorted({k for st in stages for k in st} - set(names))
     return {"first_frame_ms": first_ms, "times_ms": times, "time_ms": _median(times),
@@ -376,7 +378,8 @@ def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, pee
                  "overrides": dict(overrides or {}), "budget_s": budget_s, "peer_budget_s": peer_budget_s,
                  "peer_seed": PEER_SEED},
         "timing_note": ("ours: median wall clock of pipeline.render over the timed frames after one warm-up "
-                        "frame (scene already extracted; geometry upload included); peers: Blender wall time "
+                        "frame (scene already extracted; geometry upload included), stage times from one "
+                        "more frame synchronised after every stage; peers: Blender wall time "
                         "of one shadowed render (render_init → render_complete), median over the repeated pairs "
                         "(Cycles: as many as fit in peer_budget_s, up to repeats; EEVEE: one), after an "
                         "untimed 1-sample warm-up pair per scene whose time is the peers' first-frame"),

@@ -51,18 +51,21 @@ class Progress:
 
 
 def render(snap: SceneSnapshot, settings: RenderSettings, *, on_progress=None, should_stop=None,
-           worker: GpuWorker | None = None) -> FrameResult:
-    """Render one frame on the GPU thread; blocks this thread, forwarding progress and cancellation."""
+           worker: GpuWorker | None = None, stage_times: bool = False) -> FrameResult:
+    """Render one frame on the GPU thread; blocks this thread, forwarding progress and cancellation.
+    `stage_times`: synchronise the GPU after every timed stage so FrameResult.timings are true per-stage
+    times (the bench); otherwise the GPU runs ahead and waits only where a result is read back."""
     settings.validate()
     worker = worker or GpuWorker.get()
-    return worker.run(render_job, snap, settings, on_progress=on_progress, should_stop=should_stop)
+    return worker.run(render_job, snap, settings, on_progress=on_progress, should_stop=should_stop,
+                      stage_times=stage_times)
 
 
 def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
-               geometry: SceneGeometry | None = None) -> FrameResult:
+               geometry: SceneGeometry | None = None, stage_times: bool = False) -> FrameResult:
     job.check()
     technique = get_technique(settings.technique)
-    frame = Frame(worker, snap, settings, geometry)
+    frame = Frame(worker, snap, settings, geometry, stage_times=stage_times)
     try:
         frame.progress = Progress(job, len(snap.lights))
         frame.bias_uniforms = {"u_bias": float(settings.bias), "u_normal_offset": float(settings.normal_offset)}
