@@ -79,16 +79,14 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     snap, settings, t = frame.snap, frame.settings, frame.timings
     size = (frame.width, frame.height)
     combined, unshadowed, irradiance_sum = frame.texture(size, 4), frame.texture(size, 4), frame.texture(size, 4)
-    sums = frame.texture(size, 2)
-    for tex in (combined, unshadowed, sums, irradiance_sum):
-        tex.write(np.zeros((frame.height, frame.width, tex.components), np.float32).tobytes())
+    sums = frame.texture(size, 2)       # all four zero-filled (Frame.texture)
     irradiance, visibility = frame.texture(size, 4), frame.texture(size, 1)
     ones = np.ones((frame.height, frame.width), np.float32).tobytes()
 
     with t.stage("readback"):
         position = frame.read(frame.gbuffer["g_position"])
     covered = position[..., 3] > 0.0
-    bounds_buffer = frame.buffer(bytes(_BOUNDS_BYTES))
+    bounds_buffer = frame.buffer(_BOUNDS_RESET)
     caster_objects = np.array([o.caster for o in snap.objects], bool)
     object_bounds = frame.geometry.object_bounds()
     has_casters = frame.geometry.has_casters

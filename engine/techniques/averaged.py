@@ -87,8 +87,7 @@ class AveragedMaps(Technique):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
         offsets = light_samples(light, n, s.seed) if not light.is_delta else np.zeros((1, 2))
-        sums = frame.texture((frame.width, frame.height), 4)
-        sums.write(np.zeros((frame.height, frame.width, 4), np.float32).tobytes())
+        sums = frame.texture((frame.width, frame.height), 4)        # zero-filled
         weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
