@@ -200,3 +200,35 @@ def test_the_gpu_is_synchronised_only_when_stage_times_are_asked(monkeypatch):
     assert calls == []
     pipeline.render(snap, settings, stage_times=True)
     assert len(calls) > 8           # upload, G-buffer, irradiance, readbacks, 4 × (map, accumulate), …
+
+
+def test_layered_depth_maps_equal_one_map_per_view():
+    """REFERENCE draws a batch of sample maps in one layered pass (techniques/averaged.py render_layers);
+    each layer must hold what a depth map of that view alone holds, also for views of different sizes
+    (a smaller map fills its layer's lower-left corner)."""
+    from penumbra.engine.core import lightview
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    from penumbra.engine.techniques.averaged import render_layers
+    snap = floating_plane(32)
+    light = snap.lights[0]
+    receivers = (np.array([-4.0, -4.0, 0.0]), np.array([4.0, 4.0, 0.0]))
+    casters = (np.array([-0.5, -0.5, 1.0]), np.array([0.5, 0.5, 1.0]))
+    views = [lightview.fit(light, receivers, casters, size, origin_local=np.array([x, y, 0.0]))
+             for size, x, y in ((128, 0.0, 0.0), (128, 0.4, -0.3), (96, -0.2, 0.5), (64, 0.5, 0.5))]
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings())
+        try:
+            layers = render_layers(frame, views)
+            array = np.frombuffer(layers.read(), np.float32).reshape(len(views), layers.height, layers.width)
+            single = [frame.read(frame.render_depth_map(v))[..., 0].copy() for v in views]
+            return array.copy(), single
+        finally:
+            frame.release()
+    array, single = GpuWorker.get().submit(job).result()
+    assert len({m.shape for m in single}) > 1, "the views should differ in size"
+    for k, m in enumerate(single):
+        h, w = m.shape
+        assert (m < 1e9).any(), "the occluder must be in every map"
+        np.testing.assert_array_equal(array[k, :h, :w], m)

@@ -174,6 +174,16 @@ class Frame:
                 obj.release()
         self._per_light.clear()
 
+    def texture_array(self, size, components, dtype="f4"):
+        """A (width, height, layers) texture array from the pool (contents undefined until written)."""
+        return self._pooled(self.pool.texture_array(size, components, dtype))
+
+    def give_back(self, obj) -> None:
+        """Return a pooled object before the frame ends, for the next taker (REFERENCE's batches); GL runs
+        commands in order, so work already issued with it still sees its old contents."""
+        self._from_pool.remove(obj)
+        self.pool.give_back(obj)
+
     def texture_array_per_light(self, size, components, dtype="f4"):
         """A (width, height, layers) texture array from the pool, given back when the current light ends
         (contents undefined until written)."""
