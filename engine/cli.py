@@ -160,7 +160,7 @@ def cmd_render(args) -> int:
     bar = ProgressBar(f"{snap.name} {settings.technique}")
     t1 = time.perf_counter()
     try:
-        result = pipeline.render(snap, settings, on_progress=bar)
+        result = pipeline.render(snap, settings, on_progress=bar, stage_times=True)   # it prints them
     except ValueError as exc:           # e.g. an image too large for the GPU (engine/gpu/frame.py)
         print(f"penumbra: {exc}", file=sys.stderr)
         return 2
@@ -313,6 +313,13 @@ def cmd_bench(args) -> int:
         # The paper studies: each study module has its own options; pass them after `--`.
         from .measure import studies
         return studies.run(args.study, ["--out", args.out, *args.study_args])
+    if args.scaling:
+        from .measure import bench
+        peers = [p for p in _csv_list(args.peers.lower()) if p not in ("none", "off")]
+        bench.run_scaling(args.out, techniques=_csv_list(args.techniques) or None, peers=peers,
+                          quick=args.quick, repeats=args.repeats, budget_s=args.budget or None)
+        print(f"wrote {args.out}/scaling.{{json,md,png}}")
+        return 0
     if args.viewport:
         from .measure import viewport_bench
         scenes = _csv_list(args.scenes) or ["suzanne", "balls", "city"]
@@ -484,6 +491,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--viewport", action="store_true",
                    help="interactive latency instead: first and refined frame after a camera move, an object "
                         "move and a light edit (default scenes suzanne, balls, city)")
+    b.add_argument("--scaling", action="store_true",
+                   help="frame time of every technique and of Cycles against output size (128² → 1920×1080), "
+                        "triangles (city, 1k → 2M) and lights (1 → 16), log–log plots with slopes")
+    b.add_argument("--quick", action="store_true", help="with --scaling: two tiny points per axis, one frame")
     b.add_argument("--viewport-size", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
                    default=[1280, 720], help="viewport size in pixels")
     b.add_argument("--study", choices=tuple(STUDIES),

@@ -88,3 +88,23 @@ def test_sweep_table():
     labels = [label for label, _, _ in bench.configurations("PCF", bench.RenderSettings(), sweep=True)]
     assert labels == ["map=256", "map=512", "map=1024", "map=2048", "radius=1", "radius=4"]   # radius=2 is map=1024
     assert [label for label, _, _ in bench.configurations("PCF", bench.RenderSettings(), sweep=False)] == ["default"]
+
+
+def test_scaling_quick_smoke(tmp_path):
+    """`bench --scaling --quick`: every axis has its points, the sweeps built what they say (more triangles,
+    more lights, more pixels), slopes are finite, and the files are written."""
+    results = bench.run_scaling(str(tmp_path), techniques=["HARD", "PCSS"], peers=["cycles"], quick=True,
+                                progress=False)
+    axes = results["axes"]
+    assert set(axes) == {"pixels", "triangles", "lights"}
+    px, tris, lights = axes["pixels"]["rows"], axes["triangles"]["rows"], axes["lights"]["rows"]
+    assert [r["resolution"] for r in px] == [[32, 32], [64, 64]]
+    assert tris[0]["triangles"] < tris[1]["triangles"] and 1_000 <= tris[0]["triangles"] < 2_000
+    assert [r["lights"] for r in lights] == [1, 2]
+    for data in axes.values():
+        assert set(data["slopes"]) == {"HARD", "PCSS", "Cycles"}
+        assert all(math.isfinite(s) for s in data["slopes"].values())
+        assert all(r["ms"]["PCSS"] > 0 and r["bytes"]["PCSS"] > 0 for r in data["rows"])
+    for name in ("scaling.json", "scaling.md", "scaling.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    assert "log–log slope" in (tmp_path / "scaling.md").read_text()

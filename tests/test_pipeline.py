@@ -149,3 +149,86 @@ def test_a_stop_request_cancels_the_frame():
         pipeline.render(floating_plane(64), RenderSettings(technique="REFERENCE", shadow_map_size=1024)
                         .with_(averaged_light_samples=4096), should_stop=should_stop)
     assert calls
+
+
+@pytest.mark.parametrize("facing", ["down", "sideways", "away"])
+def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
+    """The per-light lit test and receiver box come from a GPU reduction (render/lit_bounds.comp); they must
+    equal what the whole irradiance image read back gives: the exact float32 min and max of the lit pixels."""
+    from penumbra.engine.core.shading import light_defines, light_uniforms
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    snap = floating_plane(48)
+    m = snap.lights[0].matrix
+    if facing == "sideways":        # emits along +X: only the ground at x > 0 is lit
+        m[:3, :3] = [[0, 0, 1], [0, 1, 0], [-1, 0, 0]]
+    elif facing == "away":          # emits straight up: nothing is lit
+        m[:3, :3] = np.diag([1.0, -1.0, -1.0])
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings())
+        try:
+            irradiance = frame.texture((frame.width, frame.height), 4)
+            light = snap.lights[0]
+            frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
+                           defines=light_defines(light))
+            gpu = pipeline._lit_bounds(frame, irradiance, frame.buffer(bytes(pipeline._BOUNDS_BYTES)))
+            lit = (frame.read(irradiance)[..., 3] > 0) & (frame.read(frame.gbuffer["g_position"])[..., 3] > 0)
+            xyz = frame.read(frame.gbuffer["g_position"])[..., :3][lit]
+            return gpu, lit, xyz
+        finally:
+            frame.release()
+    gpu, lit, xyz = GpuWorker.get().submit(job).result()
+    if facing == "away":
+        assert not lit.any() and gpu is None
+        return
+    assert 0 < lit.sum() < lit.size if facing == "sideways" else lit.sum() > 0
+    np.testing.assert_array_equal(gpu[0], xyz.min(axis=0).astype(np.float64))
+    np.testing.assert_array_equal(gpu[1], xyz.max(axis=0).astype(np.float64))
+
+
+def test_the_gpu_is_synchronised_only_when_stage_times_are_asked(monkeypatch):
+    """A normal render waits for the GPU only where it reads a result back; ctx.finish() after every timed
+    stage is for the bench's per-stage times (pipeline.render(stage_times=True))."""
+    import moderngl
+    calls = []
+    original = moderngl.Context.finish
+    monkeypatch.setattr(moderngl.Context, "finish", lambda self: (calls.append(1), original(self))[1])
+    snap = floating_plane(32)
+    settings = RenderSettings(technique="REFERENCE").with_(averaged_light_samples=4)
+    pipeline.render(snap, settings)
+    assert calls == []
+    pipeline.render(snap, settings, stage_times=True)
+    assert len(calls) > 8           # upload, G-buffer, irradiance, readbacks, 4 × (map, accumulate), …
+
+
+def test_layered_depth_maps_equal_one_map_per_view():
+    """REFERENCE draws a batch of sample maps in one layered pass (techniques/averaged.py render_layers);
+    each layer must hold what a depth map of that view alone holds, also for views of different sizes
+    (a smaller map fills its layer's lower-left corner)."""
+    from penumbra.engine.core import lightview
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    from penumbra.engine.techniques.averaged import render_layers
+    snap = floating_plane(32)
+    light = snap.lights[0]
+    receivers = (np.array([-4.0, -4.0, 0.0]), np.array([4.0, 4.0, 0.0]))
+    casters = (np.array([-0.5, -0.5, 1.0]), np.array([0.5, 0.5, 1.0]))
+    views = [lightview.fit(light, receivers, casters, size, origin_local=np.array([x, y, 0.0]))
+             for size, x, y in ((128, 0.0, 0.0), (128, 0.4, -0.3), (96, -0.2, 0.5), (64, 0.5, 0.5))]
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings())
+        try:
+            layers = render_layers(frame, views)
+            array = np.frombuffer(layers.read(), np.float32).reshape(len(views), layers.height, layers.width)
+            single = [frame.read(frame.render_depth_map(v))[..., 0].copy() for v in views]
+            return array.copy(), single
+        finally:
+            frame.release()
+    array, single = GpuWorker.get().submit(job).result()
+    assert len({m.shape for m in single}) > 1, "the views should differ in size"
+    for k, m in enumerate(single):
+        h, w = m.shape
+        assert (m < 1e9).any(), "the occluder must be in every map"
+        np.testing.assert_array_equal(array[k, :h, :w], m)

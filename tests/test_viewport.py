@@ -131,3 +131,31 @@ def test_an_instance_takes_its_instancers_role_in_the_viewport_too():
     viewport = {(o.name, o.role) for o in state.objects}
     assert ("RoleTri", "CASTER") in final
     assert viewport == final
+
+
+@pytest.mark.parametrize("technique", ["PCSS", "BACKPROJECTION", "REFERENCE", "SSM"])
+def test_a_viewport_redraw_allocates_no_gpu_memory(balls, technique, monkeypatch):
+    """Textures, depth textures, framebuffers and buffers come from the worker's pool (gpu/pool.py): after a
+    first frame, a redraw of the same size after a camera move creates none of them."""
+    import moderngl
+    from dataclasses import replace
+    sc, _ = balls
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    snap = extract(depsgraph, sc)
+    settings = RenderSettings(technique=technique, shadow_map_size=256).with_(averaged_light_samples=8)
+    session = ViewportSession()
+    session.sync(depsgraph)
+    session.request(snap.camera, settings, progressive=False)
+    session.wait()
+    created = []
+    for kind in ("texture", "depth_texture", "texture_array", "framebuffer", "buffer"):
+        original = getattr(moderngl.Context, kind)
+        monkeypatch.setattr(moderngl.Context, kind,
+                            lambda self, *a, _k=kind, _f=original, **kw: (created.append(_k), _f(self, *a, **kw))[1])
+    moved = snap.camera.view.copy()
+    moved[0, 3] += 1e-4          # an orbit small enough to keep every per-light map the same size
+    session.request(replace(snap.camera, view=moved), settings, progressive=False)
+    frame = session.wait()
+    assert frame.request == 2 and not frame.coarse
+    assert created == [], f"{technique}: a redraw created {created}"
+    session.free()

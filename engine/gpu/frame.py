@@ -11,6 +11,7 @@ from ..core.lightview import LightView
 from ..core.shader_constants import NO_OCCLUDER
 from ..core.snapshot import SceneSnapshot
 from .geometry import SceneGeometry, SoupGeometry
+from .pool import pool_of
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
 from .state import gl_state
 
@@ -90,13 +91,17 @@ def check_image_size(ctx, width: int, height: int) -> None:
 
 
 class Timings(dict):
-    """Milliseconds per stage, summed over lights and samples. `stage()` times a block after ctx.finish():
-    llvmpipe gives no useful GL timer queries, so wall clock around a finished pipeline it is. Nested stages
-    count once: an outer stage is charged only the time its inner stages did not claim."""
+    """Milliseconds per stage, summed over lights and samples. With `sync` (per-stage timing asked for: the
+    bench), `stage()` times a block after ctx.finish(): llvmpipe gives no useful GL timer queries, so wall
+    clock around a finished pipeline it is. Without it (a normal render, the viewport) nothing waits for the
+    GPU here, and a stage's time is what the CPU spent issuing it: GPU work lands in whichever later stage
+    reads a result back. Nested stages count once: an outer stage is charged only the time its inner stages
+    did not claim."""
 
-    def __init__(self, ctx):
+    def __init__(self, ctx, sync: bool = True):
         super().__init__()
         self._ctx = ctx
+        self.sync = sync
         self._inner: list[float] = []
 
     @contextmanager
@@ -106,7 +111,8 @@ class Timings(dict):
         try:
             yield
         finally:
-            self._ctx.finish()
+            if self.sync:
+                self._ctx.finish()
             elapsed = (time.perf_counter() - start) * 1000.0
             inner = self._inner.pop()
             if self._inner:
@@ -117,15 +123,18 @@ class Timings(dict):
 class Frame:
     """Everything a technique needs on the GPU for one camera image."""
 
-    def __init__(self, worker, snap: SceneSnapshot, settings, geometry: SceneGeometry | None = None):
+    def __init__(self, worker, snap: SceneSnapshot, settings, geometry: SceneGeometry | None = None,
+                 stage_times: bool = False):
         self.worker = worker
         self.ctx = ctx = worker.ctx
         self.snap = snap
         self.settings = settings
         self.width, self.height = snap.camera.width, snap.camera.height
         check_image_size(ctx, self.width, self.height)
-        self.timings = Timings(ctx)
+        self.timings = Timings(ctx, sync=stage_times)     # GPU waits only when per-stage times are asked
         self._owned: list = []
+        self.pool = pool_of(worker)
+        self._from_pool: list = []      # pooled objects this frame took: given back by release()
         self._per_light: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline
         self.bias_uniforms: dict = {}   # u_bias / u_normal_offset, shared by every technique
@@ -159,30 +168,68 @@ class Frame:
 
     def end_light(self) -> None:
         for obj in reversed(self._per_light):
-            obj.release()
+            if self.pool.pooled(obj):
+                self.pool.give_back(obj)
+            else:
+                obj.release()
         self._per_light.clear()
 
+    def texture_array(self, size, components, dtype="f4"):
+        """A (width, height, layers) texture array from the pool (contents undefined until written)."""
+        return self._pooled(self.pool.texture_array(size, components, dtype))
+
+    def give_back(self, obj) -> None:
+        """Return a pooled object before the frame ends, for the next taker (REFERENCE's batches); GL runs
+        commands in order, so work already issued with it still sees its old contents."""
+        self._from_pool.remove(obj)
+        self.pool.give_back(obj)
+
+    def texture_array_per_light(self, size, components, dtype="f4"):
+        """A (width, height, layers) texture array from the pool, given back when the current light ends
+        (contents undefined until written)."""
+        return self.own_per_light(self.pool.texture_array(size, components, dtype))
+
     def buffer(self, data: bytes):
-        return self.own(self.ctx.buffer(data))
+        """A storage buffer holding `data`, from the worker's pool (gpu/pool.py), back to it with the frame."""
+        return self._pooled(self.pool.buffer(data))
 
     def texture(self, size, components, dtype="f4"):
-        tex = self.own(self.ctx.texture(size, components, dtype=dtype))
-        tex.filter = (0x2600, 0x2600)   # GL_NEAREST: techniques fetch texels themselves
-        return tex
+        """A zero-filled texture, GL_NEAREST, from the worker's pool, back to it with the frame."""
+        return self._pooled(self.pool.texture(size, components, dtype))
+
+    def depth_texture(self, size):
+        """A depth texture (contents undefined until cleared) from the pool, back to it with the frame."""
+        return self._pooled(self.pool.depth_texture(size))
+
+    def framebuffer(self, color_attachments, depth_attachment=None):
+        """A framebuffer of these attachments: the pool's cached one when they all come from the pool."""
+        attachments = [*color_attachments, *([depth_attachment] if depth_attachment is not None else [])]
+        if all(self.pool.pooled(a) for a in attachments):
+            return self.pool.framebuffer(color_attachments, depth_attachment)
+        return self.own(self.ctx.framebuffer(color_attachments=list(color_attachments),
+                                             depth_attachment=depth_attachment))
+
+    def _pooled(self, obj):
+        self._from_pool.append(obj)
+        return obj
 
     def release(self):
         self.end_light()
         for obj in reversed(self._owned):
             obj.release()
         self._owned.clear()
+        for obj in reversed(self._from_pool):    # last in, first out: the next frame gets them in this order
+            self.pool.give_back(obj)
+        self._from_pool.clear()
+        self.pool.end_frame()
 
     # ---- camera G-buffer -------------------------------------------------------------------------------
     def _render_gbuffer(self):
         ctx, cam = self.ctx, self.snap.camera
         size = (self.width, self.height)
         g = {name: self.texture(size, 4) for name in ("g_position", "g_normal", "g_geometric", "g_albedo")}
-        depth = self.own(ctx.depth_texture(size))
-        fbo = self.own(ctx.framebuffer(color_attachments=list(g.values()), depth_attachment=depth))
+        depth = self.depth_texture(size)
+        fbo = self.framebuffer(list(g.values()), depth)
         with self.timings.stage("gbuffer"):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
@@ -207,8 +254,8 @@ class Frame:
     def target(self, size, components: int = 1, dtype: str = "f4"):
         """A (colour texture, framebuffer with a depth buffer) pair owned by the frame."""
         tex = self.texture(size, components, dtype)
-        depth = self.own(self.ctx.depth_texture(size))
-        return tex, self.own(self.ctx.framebuffer(color_attachments=[tex], depth_attachment=depth))
+        depth = self.depth_texture(size)
+        return tex, self.framebuffer([tex], depth)
 
     def rasterise(self, target, prog, view, view_proj, *, role: str = "caster", draws=((None, {}),),
                   clear=(NO_OCCLUDER, 0.0, 0.0, 0.0), farthest: bool = False, uniforms: dict | None = None,
@@ -253,14 +300,18 @@ class Frame:
 
     # ---- compute passes --------------------------------------------------------------------------------
     def dispatch(self, compute: str, uniforms: dict | None = None, samplers: dict | None = None,
-                 images: dict | None = None, defines: dict | None = None, size=None) -> None:
+                 images: dict | None = None, defines: dict | None = None, size=None,
+                 buffers: dict | None = None) -> None:
         """Run glsl/`compute` once per image pixel. `samplers`: uniform name → texture; `images`: binding →
-        texture (bound read-write). The G-buffer is always bound under its own names."""
+        texture (bound read-write); `buffers`: binding → storage buffer. The G-buffer is always bound under
+        its own names."""
         prog = program(self.worker, compute=compute, defines=defines)
         w, h = size or (self.width, self.height)
         bind_samplers(prog, {**self.gbuffer, **(samplers or {})})
         for binding, tex in (images or {}).items():
             tex.bind_to_image(binding, read=True, write=True)
+        for binding, buf in (buffers or {}).items():
+            buf.bind_to_storage_buffer(binding)
         set_uniforms(prog, {"u_image_size": (w, h), **(uniforms or {})})
         prog.run((w + 7) // 8, (h + 7) // 8, 1)
         self.ctx.memory_barrier()

@@ -4,8 +4,8 @@ Cycles itself (and optionally EEVEE) at a few sample counts on the same scene an
 Per scene: build it, extract the snapshot once, load (or render and cache) the Cycles reference and its noise
 floor (the same metrics between two reference seeds). Per technique × configuration: one warm-up frame (its
 time is reported apart as the first-frame time: shader compilation, first uploads), then N timed frames; the
-time reported is the median wall clock of `pipeline.render` (which waits for the GPU), with per-stage
-medians beside it, and the error is `metrics.compare` of the Visibility pass against the reference.
+time reported is the median wall clock of `pipeline.render` (which returns once the passes are read back), with
+the stage times of one more frame synchronised after every stage beside it, and the error is `metrics.compare` of the Visibility pass against the reference.
 
 Peers: Cycles at 1, 4, 16, … samples, rendered fresh (not cached, seed `PEER_SEED`, unlike the reference's
 seeds), timed as a user pays for one shadowed image (the render of the shadowed half of the reference pair,
@@ -163,7 +163,9 @@ def _median(xs) -> float:
 
 def time_ours(snap, settings: RenderSettings, repeats: int, *, on_frame=None,
               budget_s: float | None = CONFIG_BUDGET_S) -> dict:
-    """Warm-up frame, then up to `repeats` timed frames (fewer when they would exceed `budget_s`, never 0)."""
+    """Warm-up frame, then up to `repeats` timed frames (fewer when they would exceed `budget_s`, never 0),
+    as a user gets them (the GPU synchronised only where a result is read back); then one frame with per-stage
+    synchronisation (pipeline.render's stage_times) for the stage breakdown."""
     t0 = time.perf_counter()
     result = pipeline.render(snap, settings)
     first_ms = (time.perf_counter() - t0) * 1000.0
@@ -172,14 +174,14 @@ def time_ours(snap, settings: RenderSettings, repeats: int, *, on_frame=None,
         n = max(1, min(n, int(budget_s * 1000.0 // max(first_ms, 1e-3))))
     if on_frame:
         on_frame(1, n + 1)
-    times, stages = [], []
+    times = []
     for i in range(n):
         t0 = time.perf_counter()
         result = pipeline.render(snap, settings)
         times.append((time.perf_counter() - t0) * 1000.0)
-        stages.append(result.timings)
         if on_frame:
             on_frame(i + 2, n + 1)
+    stages = [pipeline.render(snap, settings, stage_times=True).timings]
     names = [s for s in STAGES if any(s in st for st in stages)]
     names += sorted({k for st in stages for k in st} - set(names))
     return {"first_frame_ms": first_ms, "times_ms": times, "time_ms": _median(times),
@@ -376,7 +378,8 @@ def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, pee
                  "overrides": dict(overrides or {}), "budget_s": budget_s, "peer_budget_s": peer_budget_s,
                  "peer_seed": PEER_SEED},
         "timing_note": ("ours: median wall clock of pipeline.render over the timed frames after one warm-up "
-                        "frame (scene already extracted; geometry upload included); peers: Blender wall time "
+                        "frame (scene already extracted; geometry upload included), stage times from one "
+                        "more frame synchronised after every stage; peers: Blender wall time "
                         "of one shadowed render (render_init → render_complete), median over the repeated pairs "
                         "(Cycles: as many as fit in peer_budget_s, up to repeats; EEVEE: one), after an "
                         "untimed 1-sample warm-up pair per scene whose time is the peers' first-frame"),
@@ -675,3 +678,173 @@ def write_outputs(out_dir: str, results: dict, plot_scene: dict | None = None) -
     write_atomic(os.path.join(out_dir, "results.md"), results_markdown(results))
     for entry in ([plot_scene] if plot_scene is not None else results["scenes"]):
         plot_pareto(entry, results["machine"], os.path.join(out_dir, f"pareto_{entry['scene']}.png"))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Scaling: how frame time grows with the work (`bench --scaling`)
+
+SCALING_SIZES = ((128, 128), (256, 256), (512, 512), (1024, 1024), (1920, 1080))
+SCALING_TRIANGLES = (1_000, 10_000, 100_000, 500_000, 2_000_000)
+SCALING_LIGHTS = (1, 2, 4, 8, 16)
+SCALING_QUICK = {"sizes": ((32, 32), (64, 64)), "triangles": (1_000, 4_000), "lights": (1, 2)}
+SCALING_BASE_SIZE = (384, 384)          # output size of the triangle and light sweeps
+SCALING_CYCLES_SAMPLES = 16
+
+
+def _city_scene(triangles: int, resolution):
+    """The built-in city with about `triangles` triangles (10 per box) over the same 12 m square."""
+    import bpy
+    from . import scenes as scene_lib
+    scene = scene_lib.build("city", resolution=resolution)
+    n = max(1, int(round(math.sqrt(triangles / 10.0))))
+    pitch = 150 * 0.08 / n
+    city = bpy.data.objects["City"]
+    old = city.data
+    city.data = scene_lib._city_mesh("City", n, n, pitch=pitch, footprint=pitch * 0.6875, seed=20240607)
+    city.data.materials.append(old.materials[0])
+    bpy.data.meshes.remove(old)
+    bpy.context.view_layer.update()
+    return scene
+
+
+def _lights_scene(lights: int, resolution):
+    """`suzanne` with `lights` area lights on a ring above it (the scene's own light first)."""
+    import bpy
+    from . import scenes as scene_lib
+    scene = scene_lib.build("suzanne", resolution=resolution)
+    for k in range(1, lights):
+        a = 2.0 * math.pi * k / lights
+        scene_lib._add_area_light(scene, (2.5 * math.cos(a), 2.5 * math.sin(a), 4.0), (0.0, 0.0, 0.0), 1.0,
+                                  radiance=scene_lib.TARGET_RADIANCE / lights)
+    bpy.context.view_layer.update()
+    return scene
+
+
+def _log_slope(xs, ys) -> float:
+    """Slope of log y against log x (least squares): 1 = linear growth, 0 = flat."""
+    pts = [(math.log(x), math.log(y)) for x, y in zip(xs, ys) if _finite(y) and y > 0 and x > 0]
+    if len(pts) < 2:
+        return float("nan")
+    lx, ly = np.array(pts).T
+    return float(np.polyfit(lx, ly, 1)[0])
+
+
+def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = False, repeats: int = 3,
+                cycles_samples: int = SCALING_CYCLES_SAMPLES, budget_s: float | None = CONFIG_BUDGET_S,
+                progress: bool = True, stream=None) -> dict:
+    """Frame time of every technique (and of Cycles at `cycles_samples`) against output size, triangle
+    count (the city, 1k → 2M) and light count (suzanne, 1 → 16); peak structure memory per technique from
+    FrameResult.stats["structure_bytes"]. Writes scaling.json, scaling.md and scaling.png (log–log, slope
+    per curve) under `out_dir`. `quick`: two tiny points per axis, one frame each, each technique in its cheap
+    viewport mode with 128² maps (a smoke test)."""
+    import bpy
+
+    from . import scenes as scene_lib
+    from ..blender.extract import extract
+    from ..render.pipeline import TECHNIQUES
+    from ..render.viewport import coarse_settings
+
+    stream = stream or sys.stderr
+    technique_ids = [t.upper() for t in techniques] if techniques else list(TECHNIQUES)
+    for tid in technique_ids:
+        if tid not in TECHNIQUES:
+            raise ValueError(f"unknown technique {tid!r}; choose from {', '.join(TECHNIQUES)}")
+    peers = tuple(p.lower() for p in (peers or ()))
+    for p in peers:
+        if p not in PEERS:
+            raise ValueError(f"unknown peer {p!r}; choose from {', '.join(PEERS)}")
+    if quick:
+        repeats, cycles_samples = 1, 1
+    grid = SCALING_QUICK if quick else {"sizes": SCALING_SIZES, "triangles": SCALING_TRIANGLES,
+                                        "lights": SCALING_LIGHTS}
+    base = SCALING_QUICK["sizes"][-1] if quick else SCALING_BASE_SIZE
+    axes = (("pixels", [(w * h, lambda r=(w, h): scene_lib.build("suzanne", resolution=r)) for w, h in grid["sizes"]]),
+            ("triangles", [(n, lambda n=n: _city_scene(n, base)) for n in grid["triangles"]]),
+            ("lights", [(n, lambda n=n: _lights_scene(n, base)) for n in grid["lights"]]))
+    os.makedirs(out_dir, exist_ok=True)
+    results = {"machine": machine_info(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "quick": bool(quick),
+               "repeats": int(repeats), "cycles_samples": int(cycles_samples) if "cycles" in peers else None,
+               "timing_note": "median wall clock of pipeline.render after a warm-up frame (time_ours); Cycles: "
+                              "half the shadowed/unshadowed pair at cycles_samples",
+               "axes": {}}
+    started = time.perf_counter()
+    for axis, points in axes:
+        rows = []
+        for x, make in points:
+            scene = make()
+            snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+            row = {"x": x, "resolution": [snap.camera.width, snap.camera.height],
+                   "triangles": int(snap.triangle_count), "lights": len(snap.lights), "ms": {}, "bytes": {}}
+            for tid in technique_ids:
+                settings = RenderSettings(technique=tid)
+                if quick:               # each technique's cheap viewport mode, small maps
+                    settings = coarse_settings(settings, 128)
+                timing = time_ours(snap, settings, repeats, budget_s=budget_s)
+                row["ms"][tid] = timing["time_ms"]
+                row["bytes"][tid] = int(sum(timing["result"].stats.get("structure_bytes", {}).values()))
+            if "cycles" in peers:
+                with _stdout_to_stderr(True):
+                    peer = reference.cycles_visibility(scene, samples=cycles_samples, seed=PEER_SEED,
+                                                       use_cache=False)
+                row["ms"]["Cycles"] = peer.seconds * 500.0
+            rows.append(row)
+            if progress:
+                stream.write(f"scaling {axis}={x}: " + ", ".join(f"{k} {v:.0f} ms" for k, v in row["ms"].items())
+                             + "\n")
+                stream.flush()
+        names = list(rows[0]["ms"]) if rows else []
+        results["axes"][axis] = {"rows": rows, "slopes": {k: _log_slope([r["x"] for r in rows],
+                                                                        [r["ms"].get(k) for r in rows])
+                                                          for k in names}}
+    results["wall_seconds"] = time.perf_counter() - started
+    write_atomic(os.path.join(out_dir, "scaling.json"),
+                 json.dumps(_clean(results), indent=1, allow_nan=False, default=str))
+    write_atomic(os.path.join(out_dir, "scaling.md"), scaling_markdown(results))
+    plot_scaling(results, os.path.join(out_dir, "scaling.png"))
+    return results
+
+
+def scaling_markdown(results: dict) -> str:
+    lines = [f"# Scaling ({machine_label(results['machine'])})", ""]
+    for axis, data in results["axes"].items():
+        rows = data["rows"]
+        names = list(data["slopes"])
+        lines += [f"## Frame time (ms) against {axis}", "",
+                  "| " + axis + " | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+        for r in rows:
+            lines.append(f"| {r['x']} | " + " | ".join(_num(r["ms"].get(k), ".1f") for k in names) + " |")
+        lines.append("| log–log slope | " + " | ".join(_num(data["slopes"][k], ".2f") for k in names) + " |")
+        peak = {k: max(r["bytes"].get(k, 0) for r in rows) for k in names if k != "Cycles"}
+        lines += ["", "Peak structure memory (MiB): " + ", ".join(f"{k} {v / 2**20:.1f}" for k, v in peak.items()),
+                  ""]
+    return "\n".join(lines) + "\n"
+
+
+def plot_scaling(results: dict, path: str) -> None:
+    """One log–log panel per axis: frame time per technique (and Cycles), slope in the legend."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    axes = results["axes"]
+    fig = Figure(figsize=(5.5 * len(axes), 4.5), dpi=100)
+    FigureCanvasAgg(fig)
+    for i, (axis, data) in enumerate(axes.items()):
+        ax = fig.add_subplot(1, len(axes), i + 1)
+        for name, slope in data["slopes"].items():
+            pts = [(r["x"], r["ms"][name]) for r in data["rows"] if _finite(r["ms"].get(name))
+                   and r["ms"][name] > 0]
+            if pts:
+                xs, ys = zip(*pts)
+                ax.plot(xs, ys, "--" if name == "Cycles" else "-", marker="o", ms=3,
+                        label=f"{name} (slope {slope:.2f})" if _finite(slope) else name)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(axis)
+        ax.set_ylabel("frame time (ms)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"Penumbra scaling — {machine_label(results['machine'])}", fontsize=9)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png")
+    write_atomic(path, buf.getvalue())

@@ -51,18 +51,21 @@ class Progress:
 
 
 def render(snap: SceneSnapshot, settings: RenderSettings, *, on_progress=None, should_stop=None,
-           worker: GpuWorker | None = None) -> FrameResult:
-    """Render one frame on the GPU thread; blocks this thread, forwarding progress and cancellation."""
+           worker: GpuWorker | None = None, stage_times: bool = False) -> FrameResult:
+    """Render one frame on the GPU thread; blocks this thread, forwarding progress and cancellation.
+    `stage_times`: synchronise the GPU after every timed stage so FrameResult.timings are true per-stage
+    times (the bench); otherwise the GPU runs ahead and waits only where a result is read back."""
     settings.validate()
     worker = worker or GpuWorker.get()
-    return worker.run(render_job, snap, settings, on_progress=on_progress, should_stop=should_stop)
+    return worker.run(render_job, snap, settings, on_progress=on_progress, should_stop=should_stop,
+                      stage_times=stage_times)
 
 
 def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
-               geometry: SceneGeometry | None = None) -> FrameResult:
+               geometry: SceneGeometry | None = None, stage_times: bool = False) -> FrameResult:
     job.check()
     technique = get_technique(settings.technique)
-    frame = Frame(worker, snap, settings, geometry)
+    frame = Frame(worker, snap, settings, geometry, stage_times=stage_times)
     try:
         frame.progress = Progress(job, len(snap.lights))
         frame.bias_uniforms = {"u_bias": float(settings.bias), "u_normal_offset": float(settings.normal_offset)}
@@ -76,15 +79,14 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     snap, settings, t = frame.snap, frame.settings, frame.timings
     size = (frame.width, frame.height)
     combined, unshadowed, irradiance_sum = frame.texture(size, 4), frame.texture(size, 4), frame.texture(size, 4)
-    sums = frame.texture(size, 2)
-    for tex in (combined, unshadowed, sums, irradiance_sum):
-        tex.write(np.zeros((frame.height, frame.width, tex.components), np.float32).tobytes())
+    sums = frame.texture(size, 2)       # all four zero-filled (Frame.texture)
     irradiance, visibility = frame.texture(size, 4), frame.texture(size, 1)
     ones = np.ones((frame.height, frame.width), np.float32).tobytes()
 
     with t.stage("readback"):
         position = frame.read(frame.gbuffer["g_position"])
     covered = position[..., 3] > 0.0
+    bounds_buffer = frame.buffer(_BOUNDS_RESET)
     caster_objects = np.array([o.caster for o in snap.objects], bool)
     object_bounds = frame.geometry.object_bounds()
     has_casters = frame.geometry.has_casters
@@ -107,13 +109,10 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
                            defines=light_defines(light))
         with t.stage("readback"):
-            lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
-        if not lit.any():
+            receivers = _lit_bounds(frame, irradiance, bounds_buffer)
+        if receivers is None:
             stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
             continue
-        xyz, where = position[..., :3], lit[..., None]     # bounds without copying the lit pixels out
-        receivers = (xyz.min(axis=(0, 1), where=where, initial=np.inf).astype(np.float64),
-                     xyz.max(axis=(0, 1), where=where, initial=-np.inf).astype(np.float64))
         casters = None
         if light.casts_shadow and has_casters:
             casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, sides)
@@ -125,7 +124,8 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
                 faces = lit_xyz = None
-                if view.clamped:    # only a clamped view can leave lit pixels outside: copy them out then
+                if view.clamped:    # only a clamped view can leave lit pixels outside: read them back then
+                    lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
                     faces = lightview.split_faces(view, lit_xyz)
             if faces is None:
@@ -147,6 +147,24 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     for name, value in frame.stats.items():
         stats[name] = stats.get(name, 0) + value
     return FrameResult(out, dict(t), frame.warnings, stats)
+
+
+_BOUNDS_BYTES = 28                     # render/lit_bounds.comp: a count, then encoded min and max xyz
+_BOUNDS_RESET = np.array([0] + [0xFFFFFFFF] * 3 + [0] * 3, np.uint32).tobytes()
+
+
+def _lit_bounds(frame: Frame, irradiance, buffer):
+    """World box (lo, hi) of the covered pixels this light reaches, or None if it reaches none: reduced on
+    the GPU (render/lit_bounds.comp), so only 28 bytes are read back. Exactly the float32 min and max."""
+    buffer.write(_BOUNDS_RESET)
+    frame.dispatch("render/lit_bounds.comp", samplers={"g_irradiance": irradiance}, buffers={0: buffer})
+    raw = np.frombuffer(buffer.read(), np.uint32)
+    if raw[0] == 0:
+        return None
+    enc = raw[1:7]          # invert lit_bounds.comp's ordered(): positives had the sign bit set
+    bits = np.where(enc & np.uint32(0x80000000), enc ^ np.uint32(0x80000000), ~enc).astype(np.uint32)
+    xyz = bits.view(np.float32).astype(np.float64)
+    return xyz[:3], xyz[3:]
 
 
 def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,

@@ -83,17 +83,17 @@ def render(frame, view: LightView, quantiser: str = "POW5") -> ConservativeMap:
     if quantiser == "FLOAT":
         slopes = frame.texture(size, 2)
         attachments.append(slopes)
-    depth = frame.own(ctx.depth_texture(size))
-    fbo = frame.own(ctx.framebuffer(color_attachments=attachments, depth_attachment=depth))
+    depth = frame.depth_texture(size)
+    fbo = frame.framebuffer(attachments, depth)
     table = frame.texture((256, 1), 1)
     table.write(decode_table(QUANTISERS[quantiser]).tobytes())
     cmap = ConservativeMap(min_depth, texels, slopes, table, quantiser, view)
     # Clear each attachment with its own value on the GPU (uploading cleared arrays cost ~0.3 s at 4096²):
     # the float maps and the depth test through one framebuffer, the integer texels through another.
     floats = [min_depth] + ([slopes] if slopes is not None else [])
-    clear_f = frame.own(ctx.framebuffer(color_attachments=floats, depth_attachment=depth))
+    clear_f = frame.framebuffer(floats, depth)
     clear_f.clear(NO_OCCLUDER, 0.0, 0.0, 0.0, depth=1.0)
-    clear_u = frame.own(ctx.framebuffer(color_attachments=[texels]))
+    clear_u = frame.framebuffer([texels])
     clear_u.clear(0.0, 0.0, 0.0, 0.0)
     fbo.use()
     if frame.geometry.has_casters:

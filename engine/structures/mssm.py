@@ -41,8 +41,7 @@ def build(frame, lc):
     depth, width, height = lc.structures[DEPTH_MAP], lc.view.width, lc.view.height
     with frame.timings.stage("bp_mssm"):
         levels = mssm_levels(width, height)
-        tex = frame.own_per_light(frame.ctx.texture_array((width, height, levels), 2, dtype="f4"))
-        tex.filter = (0x2600, 0x2600)       # GL_NEAREST
+        tex = frame.texture_array_per_light((width, height, levels), 2)     # GL_NEAREST
         prog = program(frame.worker, compute="backprojection/mssm.comp")
         depth.use(location=0)
         set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})

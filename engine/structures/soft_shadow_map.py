@@ -45,9 +45,7 @@ def build(frame, lc, precision: str, method: str, weighted: bool):
 
 
 def _zero(frame, view):
-    tex = frame.texture((view.width, view.height), 2)
-    tex.write(np.zeros((view.height, view.width, 2), np.float32).tobytes())
-    return tex
+    return frame.texture((view.width, view.height), 2)     # zero-filled
 
 
 def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
@@ -64,8 +62,7 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
     receivers = maps.maps["receivers"]
     if method == "COMPUTE":
         for binding in (1, 2):
-            t = frame.own(ctx.texture(size, 1, dtype="u4"))
-            t.write(np.zeros(size[0] * size[1], np.uint32).tobytes())
+            t = frame.texture(size, 1, dtype="u4")     # zero-filled
             t.bind_to_image(binding, read=True, write=True)
         prog = program(frame.worker, compute="ssm/scatter.comp", defines=defines)
         bind_samplers(prog, {"u_receivers": receivers})
@@ -86,7 +83,7 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
     set_uniforms(prog, uniforms)
     vao = frame.own(ctx.vertex_array(prog, []))
     ssm = frame.texture(size, 2, dtype)
-    fbo = frame.own(ctx.framebuffer(color_attachments=[ssm]))
+    fbo = frame.framebuffer([ssm])
     fbo.clear(0.0, 0.0, 0.0, 0.0)
     with gl_state(ctx, depth_test=False, cull=False, additive=True):
         if precision != "HALF_BATCHED":
@@ -98,7 +95,7 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
             # sums into the total (also FP16): small values are added only to small or medium ones.
             batches = max(1, int(math.isqrt(m)))
             batch = frame.texture(size, 2, "f2")
-            batch_fbo = frame.own(ctx.framebuffer(color_attachments=[batch]))
+            batch_fbo = frame.framebuffer([batch])
             add = program(frame.worker, "ssm/fullscreen.vert", "ssm/add.frag")
             add_vao = frame.own(ctx.vertex_array(add, []))
             edges = np.linspace(0, m, batches + 1).round().astype(int)

@@ -126,16 +126,15 @@ class AveragedMaps(Technique):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
         offsets = light_samples(light, n, s.seed, _fills_ball(light, lc.view)) if not light.is_delta else np.zeros((1, 2))
-        sums = frame.texture((frame.width, frame.height), 4)
-        sums.write(np.zeros((frame.height, frame.width, 4), np.float32).tobytes())
+        sums = frame.texture((frame.width, frame.height), 4)        # zero-filled
         weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
         spot = {k: v for k, v in spot_uniforms(light).items() if k != "u_spot_tan_wide"}
         true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
-        for i, offset in enumerate(offsets):
-            frame.progress.check()
+        samples = []                        # (view, sample position, emission axis) per light sample
+        for offset in offsets:
             emit = light.direction
             if light.kind == SUN:
                 tilted = tilted_sun(light, offset)
@@ -147,12 +146,71 @@ class AveragedMaps(Technique):
                 view = lightview.fit(light, lc.receivers, lc.casters, s.shadow_map_size, origin_local=local,
                                      frame=lc.view.frame, face=lc.view.face)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
+            samples.append((view, sample_world, emit))
+        # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
+        largest = max(v.width * v.height for v, _, _ in samples)
+        batch = int(min(MAX_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
+        done = 0
+        for first in range(0, len(samples), batch):
+            frame.progress.check()
+            part = samples[first:first + batch]
             with frame.timings.stage("shadow_map"):
-                depth = frame.render_depth_map(view)
+                maps = render_layers(frame, [v for v, _, _ in part])
             with frame.timings.stage("visibility"):
+                records = frame.buffer(_sample_records(part))
                 frame.dispatch("averaged/accumulate.comp", {
-                    **frame.bias_uniforms, **view.uniforms(), "u_sample_position": tuple(sample_world),
-                    "u_emit_dir": tuple(emit), "u_weight_mode": weight_mode, **spot},
-                    samplers={"g_irradiance": lc.irradiance, "u_depth_map": depth}, images={0: sums})
-            frame.progress.step((i + 1) / len(offsets), f"{light.name}: sample {i + 1}/{len(offsets)}")
+                    **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode, **spot},
+                    samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps}, images={0: sums},
+                    buffers={1: records})
+            frame.give_back(maps)           # the next batch draws into the same array
+            frame.give_back(records)
+            done += len(part)
+            frame.progress.step(done / len(samples), f"{light.name}: sample {done}/{len(samples)}")
         frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})
+
+
+MAX_LAYERS = 32                 # layers per batch: geometry-shader invocations (GL guarantees 32)
+BATCH_BYTES = 64 << 20          # at most this much texture array per batch
+
+
+def _sample_records(part) -> bytes:
+    """averaged/accumulate.comp's Sample structs (std430, 144 bytes each)."""
+    rec = np.zeros((len(part), 36), np.float32)
+    for k, (view, position, emit) in enumerate(part):
+        u = view.uniforms()
+        rec[k, 0:16] = u["u_light_view"]
+        rec[k, 16:20] = u["u_light_window"]
+        rec[k, 20:24] = (*u["u_light_depth_range"], u["u_texel_tan"], u["u_light_ortho"])
+        rec[k, 24:26] = np.array(u["u_map_size"], np.int32).view(np.float32)
+        rec[k, 28:31], rec[k, 32:35] = position, emit
+    return rec.tobytes()
+
+
+def render_layers(frame, views):
+    """Depth maps of the casters from each of `views` as the layers of one R32F texture array (the largest
+    view's size; a smaller map fills its lower-left corner), in one draw: averaged/layers.geom sends each
+    triangle to every layer, MIN blending keeps the nearest linear depth (NO_OCCLUDER where empty)."""
+    from ..core.shader_constants import NO_OCCLUDER
+    from ..gpu.programs import program, set_uniforms
+    from ..gpu.state import gl_state
+    w, h = max(v.width for v in views), max(v.height for v in views)
+    maps = frame.texture_array((w, h, len(views)), 1)
+    fbo = frame.framebuffer([maps])
+    fbo.use()
+    fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0)
+    if not frame.geometry.has_casters:
+        return maps
+    rec = np.zeros((len(views), 36), np.float32)
+    for k, v in enumerate(views):
+        rec[k, 0:16] = np.asarray(v.view, np.float32).T.ravel()
+        rec[k, 16:32] = np.asarray(v.view_proj, np.float32).T.ravel()
+        rec[k, 32:34] = (v.width / w, v.height / h)
+    prog = program(frame.worker, "averaged/layers.vert", "common/depth.frag", geometry="averaged/layers.geom",
+                   defines={"MAX_LAYERS": MAX_LAYERS})
+    layer_views = frame.buffer(rec.tobytes())
+    layer_views.bind_to_storage_buffer(0)
+    set_uniforms(prog, {"u_count": len(views)})
+    with gl_state(frame.ctx, depth_test=False, cull=False, minimum=True):
+        frame.geometry.render(frame.ctx, prog, "caster", position_only=True)
+    frame.give_back(layer_views)
+    return maps

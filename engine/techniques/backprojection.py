@@ -244,8 +244,8 @@ class Backprojection(Technique):
                     frame.dispatch("backprojection/filter.comp", samplers={"u_b": src, "u_info": info},
                                    images={0: dst})
                     src, dst = dst, src
-                if src is not out:      # odd number of passes: the result is in tmp
-                    out.write(src.read())
+                if src is not out:      # odd number of passes: the result is in tmp; copied on the GPU
+                    frame.dispatch("common/copy_r.comp", samplers={"u_src": src}, images={0: out})
         # Share of backprojecting pixels and micro-occluders per such pixel (costs a readback).
         if s.collect_stats or s.debug_passes:
             self._gather_debug(frame, lc, info, rgb_tex, out)

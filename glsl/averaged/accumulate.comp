@@ -1,15 +1,24 @@
-// Averaged shadow maps (REFERENCE): adds one hard shadow map, rendered from one sample point of the light,
-// to running sums.
+// Averaged shadow maps (REFERENCE): adds a batch of hard shadow maps (layers of one texture array, each
+// rendered from one sample point of the light) to running sums, in sample order.
 // Each sample is weighted by its unoccluded contribution at the pixel (cosines over squared distance), so
 // the average converges to the irradiance-weighted visibility that Cycles' shadowed/unshadowed ratio gives;
 // a spot's samples also carry its cone.
+#define LIGHT_VIEW_PER_LAYER
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #include "common/spot.glsl"
 
-uniform sampler2D u_depth_map;
-uniform vec3 u_sample_position;   // world position of the sample (perspective views)
-uniform vec3 u_emit_dir;          // light's emission axis (world); a sun's: this sample's direction
+uniform sampler2DArray u_depth_maps;
+struct Sample {
+    mat4 view;
+    vec4 window;
+    vec4 range_tan_ortho;   // near, far, texel tan, ortho (0/1)
+    ivec4 size;             // map size (xy)
+    vec4 position;          // world position of the sample (perspective views)
+    vec4 emit;              // light's emission axis (world); a sun's: this sample's direction
+};
+layout(std430, binding = 1) readonly buffer Samples { Sample samples[]; };
+uniform int u_count;
 uniform vec4 u_sphere_inside;     // a true sphere light's centre and r² (r² = -1 for any other light)
 uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine), WEIGHT_SUN
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
@@ -18,24 +27,40 @@ void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px) || !pixel_lit(px)) return;
     vec3 p = texelFetch(g_position, px, 0).xyz;
-    Receiver r = make_receiver(p, texelFetch(g_geometric, px, 0).xyz);
-    float v = map_lit_plane(u_depth_map, ivec2(floor(r.map.xy)), r);
-    float w = 1.0;
-    if (u_weight_mode == WEIGHT_SUN) {
-        // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts
-        w = max(dot(texelFetch(g_normal, px, 0).xyz, -u_emit_dir), 0.0);
-    } else if (u_weight_mode != WEIGHT_NONE) {
-        vec3 to_sample = u_sample_position - p;
-        float d2 = max(dot(to_sample, to_sample), 1e-30);   // m²: a receiver on the sample point
-        vec3 dir = to_sample * inversesqrt(d2);
-        w = max(dot(texelFetch(g_normal, px, 0).xyz, dir), 0.0) / d2;
-        if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-dir, u_emit_dir), 0.0);
-        // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
-        // spot's disk reaches p only from its footprint; see shading/irradiance.glsl).
-        // Inside a true sphere Cycles applies no cone (u_sphere_inside: centre and r², r² < 0 otherwise).
-        vec3 from_centre = p - u_sphere_inside.xyz;
-        bool inside = dot(from_centre, from_centre) <= u_sphere_inside.w;
-        if (u_spot_cos_half > -1.0 && !inside) w *= spot_attenuation(-dir);
+    vec3 ng = texelFetch(g_geometric, px, 0).xyz;
+    vec3 n = texelFetch(g_normal, px, 0).xyz;
+    vec4 sums = imageLoad(u_sums, px);
+    vec3 from_centre = p - u_sphere_inside.xyz;
+    bool inside_sphere = dot(from_centre, from_centre) <= u_sphere_inside.w;
+    for (int i = 0; i < u_count; ++i) {
+        Sample s = samples[i];
+        u_light_view = s.view;
+        u_light_window = s.window;
+        u_light_depth_range = s.range_tan_ortho.xy;
+        u_texel_tan = s.range_tan_ortho.z;
+        u_light_ortho = int(s.range_tan_ortho.w);
+        u_map_size = s.size.xy;
+        Receiver r = make_receiver(p, ng);
+        ivec2 t = ivec2(floor(r.map.xy));
+        float v = 1.0;              // outside the map counts as lit (map_lit)
+        if (all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_map_size)))
+            v = texelFetch(u_depth_maps, ivec3(t, i), 0).r < receiver_depth_at(r, vec2(t) + 0.5) ? 0.0 : 1.0;
+        float w = 1.0;
+        if (u_weight_mode == WEIGHT_SUN) {
+            // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts
+            w = max(dot(n, -s.emit.xyz), 0.0);
+        } else if (u_weight_mode != WEIGHT_NONE) {
+            vec3 to_sample = s.position.xyz - p;
+            float d2 = max(dot(to_sample, to_sample), 1e-30);   // m²: a receiver on the sample point
+            vec3 dir = to_sample * inversesqrt(d2);
+            w = max(dot(n, dir), 0.0) / d2;
+            if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-dir, s.emit.xyz), 0.0);
+            // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
+            // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
+            // sphere Cycles applies no cone.
+            if (u_spot_cos_half > -1.0 && !inside_sphere) w *= spot_attenuation(-dir);
+        }
+        sums += vec4(w * v, w, v, 1.0);
     }
-    imageStore(u_sums, px, imageLoad(u_sums, px) + vec4(w * v, w, v, 1.0));
+    imageStore(u_sums, px, sums);
 }

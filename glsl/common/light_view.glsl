@@ -1,11 +1,18 @@
 // Shared by every shadow-map technique: where a world point falls in the light's map, and the bias that
 // keeps a surface from shadowing itself. Uniforms are filled from engine/lightview.py LightView.uniforms().
-uniform mat4 u_light_view;
-uniform vec4 u_light_window;      // x0, x1, y0, y1: tangents at unit depth, or metres for an ortho view
-uniform int u_light_ortho;
-uniform vec2 u_light_depth_range; // near, far
-uniform ivec2 u_map_size;
-uniform float u_texel_tan;        // window units per texel
+// A shader that walks several views in one pass (REFERENCE's batches) defines LIGHT_VIEW_PER_LAYER and sets
+// the view's values itself, as plain variables, before each use.
+#ifdef LIGHT_VIEW_PER_LAYER
+#define LIGHT_VIEW_VALUE
+#else
+#define LIGHT_VIEW_VALUE uniform
+#endif
+LIGHT_VIEW_VALUE mat4 u_light_view;
+LIGHT_VIEW_VALUE vec4 u_light_window;      // x0, x1, y0, y1: tangents at unit depth, or metres for an ortho view
+LIGHT_VIEW_VALUE int u_light_ortho;
+LIGHT_VIEW_VALUE vec2 u_light_depth_range; // near, far
+LIGHT_VIEW_VALUE ivec2 u_map_size;
+LIGHT_VIEW_VALUE float u_texel_tan;        // window units per texel
 uniform float u_bias;             // texels, scaled by the receiver's slope
 uniform float u_normal_offset;    // texels along the geometric normal
 

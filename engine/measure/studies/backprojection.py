@@ -64,7 +64,7 @@ def timed(snap, settings, repeats: int):
     times, result = [], None
     for _ in range(max(1, repeats)):
         t0 = time.perf_counter()
-        result = pipeline.render(snap, settings)
+        result = pipeline.render(snap, settings, stage_times=True)
         times.append((time.perf_counter() - t0) * 1000.0)
     return float(np.median(times)), result
 
@@ -116,7 +116,7 @@ def build_times(sizes=(256, 512, 1024, 2048), repeats: int = 3, log=print) -> li
         for refine, stage in (("HSM", "bp_hsm"), ("MSSM", "bp_mssm")):
             settings = RenderSettings(technique="BACKPROJECTION", shadow_map_size=n).with_(bp_refinement=refine)
             pipeline.render(snap, settings)
-            vals = [pipeline.render(snap, settings).timings.get(stage, float("nan")) for _ in range(repeats)]
+            vals = [pipeline.render(snap, settings, stage_times=True).timings.get(stage, float("nan")) for _ in range(repeats)]
             row[refine] = float(np.median(vals))
         out.append(row)
         log(f"build {n}²: HSM {row['HSM']:.1f} ms, MSSM {row['MSSM']:.1f} ms")

@@ -99,7 +99,7 @@ def _render(snap, settings, repeats):
     best, result = None, None
     for _ in range(max(repeats, 1)):
         t0 = time.perf_counter()
-        result = pipeline.render(snap, settings)
+        result = pipeline.render(snap, settings, stage_times=True)
         dt = (time.perf_counter() - t0) * 1000.0
         best = dt if best is None else min(best, dt)
     return result, best

@@ -85,7 +85,7 @@ def _render(snap, settings, repeats: int):
     from ...render import pipeline
     best = None
     for _ in range(max(repeats, 1)):
-        r = pipeline.render(snap, settings)
+        r = pipeline.render(snap, settings, stage_times=True)
         if best is None or r.total_ms < best.total_ms:
             best = r
     return best

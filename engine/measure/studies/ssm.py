@@ -88,7 +88,7 @@ def _measure(sc, settings_list, samples: int, repeats: int):
     for settings in settings_list:
         best = None
         for _ in range(repeats):
-            r = pipeline.render(snap, settings)
+            r = pipeline.render(snap, settings, stage_times=True)
             ms = sum(r.timings.get(k, 0.0) for k in SSM_STAGES)
             if best is None or ms < best[1]:
                 best = (r, ms)

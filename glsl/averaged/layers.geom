@@ -1,0 +1,33 @@
+// REFERENCE's layered depth pass: each triangle drawn once per light sample of the batch, into that sample's
+// layer of a texture array (one geometry-shader invocation per layer), as common/depth.vert would draw it
+// into the sample's own map. A layer's map may be smaller than the array: `scale` (its size over the array's)
+// maps its clip square onto its corner of the layer; 1 leaves the position exactly as depth.vert's.
+layout(triangles, invocations = MAX_LAYERS) in;
+layout(triangle_strip, max_vertices = 3) out;
+
+struct LayerView {
+    mat4 view;
+    mat4 view_proj;
+    vec4 scale;     // xy: layer map size / array size
+};
+layout(std430, binding = 0) readonly buffer LayerViews { LayerView views[]; };
+uniform int u_count;
+
+in vec4 v_world[];
+out float v_depth;
+
+void main() {
+    int layer = gl_InvocationID;
+    if (layer >= u_count) return;
+    LayerView lv = views[layer];
+    for (int k = 0; k < 3; ++k) {
+        vec4 world = v_world[k];
+        vec4 clip = lv.view_proj * world;
+        clip.xy = clip.xy * lv.scale.xy + (lv.scale.xy - 1.0) * clip.w;
+        gl_Position = clip;
+        v_depth = -(lv.view * world).z;
+        gl_Layer = layer;
+        EmitVertex();
+    }
+    EndPrimitive();
+}
