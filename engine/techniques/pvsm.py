@@ -42,13 +42,14 @@ from ..core import lightview
 from ..core.matrices import mat_uniform
 from ..core.snapshot import SUN
 from .. import structures
+from ..structures.conservative_map import CONSERVATIVE_MAP
 from .backprojection import is_round, level_count
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
 
-# The map the blocker search reads. The paper renders it conservatively (§5.2 step 2) so that thin geometry is
-# never lost and the fully-lit skip is safe; switch this one name to the conservative map structure when it
-# exists (it must be an R32F linear light depth, NO_OCCLUDER where empty, like the depth map).
-SEARCH_MAP = "conservative_map"
+# The map the blocker search reads: conservative (§5.2 step 2), so that thin geometry is never lost and the
+# fully-lit skip is safe, rendered at pvsm_search_size. DEPTH_MAP here instead gives the min-reduced hard map
+# (an R32F linear light depth either way, NO_OCCLUDER where empty).
+SEARCH_MAP = CONSERVATIVE_MAP
 FILTER_MAP = DEPTH_MAP
 
 GRID = 64                   # cells per axis of the shadow map tile grid (§5.2 step 4)
@@ -213,9 +214,12 @@ class Pvsm(Technique):
         {"shadow_map_size": 512}, {"shadow_map_size": 2048})
 
     def needs_for(self, settings) -> tuple:
+        # The search map is rendered at the search size itself when it is the conservative one (§5.2 step 2).
+        search = structures.need(SEARCH_MAP, size=int(settings.option("pvsm_search_size"))) \
+            if SEARCH_MAP == CONSERVATIVE_MAP else SEARCH_MAP
         if settings.option("pvsm_mode") == "ADAPTIVE":
-            return (SEARCH_MAP,)        # the tiles' maps are built per tile, in visibility()
-        return self.needs
+            return (search,)            # the tiles' maps are built per tile, in visibility()
+        return (search, FILTER_MAP)
 
     def visibility(self, frame, lc, out):
         s, light, view = frame.settings, lc.light, lc.view
