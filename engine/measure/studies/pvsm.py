@@ -171,7 +171,7 @@ STAGES = ("gbuffer", "shadow_map", "pvsm_search_map", "pvsm_predict", "pvsm_tili
 
 
 def stages(size, map_size, repeats, log):
-    """Table 1's columns; `shadow_map` is the pipeline's structures (the conservative low-resolution map, and
+    """Table 1's columns; `shadow_map` is the pipeline's structures (the low-resolution search map, and
     the one filtering map in the fixed mode), `pvsm_predict` z-averaging with the tile grid."""
     snap = stress.plane_scene(name="plane_stages")
     snap = replace(snap, camera=replace(snap.camera, width=size, height=size))
