@@ -63,6 +63,16 @@ def test_antialiasing_stays_close_to_the_closed_form(plane):
     assert err[on_ground & (exact < 0.99)].mean() < 0.02
 
 
+@pytest.mark.parametrize("cell_samples", [2, 3])
+def test_cell_samples_keep_the_closed_form(plane, cell_samples):
+    """Several depth tests per coarse cell (against aliasing of sub-cell geometry) keep every cell's weight:
+    the parallel planes' exact answer stays within the same bound."""
+    snap, pts, exact = plane
+    err, on_ground = _ground_error(snap, pts, exact, _render(snap, pvsm_weighting="UNIFORM",
+                                                              pvsm_cell_samples=cell_samples))
+    assert err[on_ground & (exact < 0.99)].mean() < 0.01
+
+
 def test_fully_lit_skip_never_darkens_a_lit_pixel(plane):
     """Pixels the closed form calls fully lit are exactly 1 with the skip, and the skip never makes a pixel
     darker than the full filter."""

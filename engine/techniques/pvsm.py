@@ -190,6 +190,8 @@ class Pvsm(Technique):
                "fraction of the map", min=0.001, max=1.0),
         Option("pvsm_cap", 24, "Kernel cap", "Most texels per axis one filter loop visits; wider kernels read "
                "a coarser level of the map", min=2, max=256),
+        Option("pvsm_cell_samples", 1, "Cell samples", "Depth tests per axis in each cell of a coarser level "
+               "(1: the texel at its centre); more stop geometry finer than a cell from aliasing", min=1, max=8),
         Option("pvsm_skip_lit", True, "Skip fully lit", "No blocker found → fully lit, no filtering (§5.2)"),
         # Off by default: against point-sampled references (Cycles' V per pixel, the stress oracle) it adds the
         # pixel's own blur, and across concave creases (room corners) its tangent-plane footprint reaches the
@@ -245,7 +247,7 @@ class Pvsm(Technique):
             "u_search_scale": (search_size[0] / w, search_size[1] / h),
             "u_fine_block": fine_block,
             "u_filter_levels": level_count(w, h),
-            "u_cap": int(o["pvsm_cap"]),
+            "u_cap": int(o["pvsm_cap"]), "u_sub": int(o["pvsm_cell_samples"]),
             "u_max_radius": float(o["pvsm_search_radius"]) * max(w, h),
             "u_skip_lit": int(bool(o["pvsm_skip_lit"])), "u_outside_lit": int(casters_inside(view, lc.casters)),
             "u_aa": int(bool(o["pvsm_antialiasing"])),

@@ -32,6 +32,7 @@ uniform vec2 u_search_scale;      // search-map texels per filtering-map texel
 uniform sampler2D u_depth_map;    // the filtering map
 uniform int u_filter_levels;      // levels of its (virtual) pyramid: level l keeps every 2^l-th texel
 uniform int u_cap;                // most texels per axis one kernel loop visits: a coarser level beyond it
+uniform int u_sub;                // depth tests per axis in a cell of a level coarser than the map's own
 uniform float u_max_radius;       // cap on the search half extent, level-0 texels
 uniform int u_skip_lit;
 uniform int u_outside_lit;        // 1: every caster lies inside the map, so past its edge nothing occludes
@@ -280,28 +281,37 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
 #endif
             total += w;
             ++g_visited;
-            // A cell of level l is the level-0 texel at its centre, as a map rendered 2^l times coarser
-            // would sample it. Past the map's edge: lit when every caster lies inside the map, else the
-            // edge texel continued outwards (compared where it lies, so a surface never shadows itself).
-            // A tile reads the cells its rectangle cuts at its own border texels.
-            vec2 tc = (vec2(i, j) + 0.5) * s;
-            if (any(lessThan(tc, u_virtual_lo)) || any(greaterThanEqual(tc, u_virtual_hi))) {
-                if (u_outside_lit == 1) continue;
-                tc = clamp(tc, u_virtual_lo + 0.5, u_virtual_hi - 0.5);
+            // A cell of level l is the level-0 texels at the centres of its u_sub × u_sub sub-cells (one: the
+            // texel at its centre, as a map rendered 2^l times coarser would sample it), each tested on its
+            // own: one point per cell aliases geometry finer than the cell (a grid of thin bars beats with the
+            // level's sampling into a moiré). Past the map's edge: lit when every caster lies inside the map,
+            // else the edge texel continued outwards (compared where it lies, so a surface never shadows
+            // itself). A tile reads the cells its rectangle cuts at its own border texels.
+            int sub = l > 0 ? u_sub : 1;
+            float hidden = 0.0;
+            for (int b = 0; b < sub; ++b) {
+                for (int a = 0; a < sub; ++a) {
+                    vec2 tc = (vec2(i, j) + (vec2(a, b) + 0.5) / float(sub)) * s;
+                    if (any(lessThan(tc, u_virtual_lo)) || any(greaterThanEqual(tc, u_virtual_hi))) {
+                        if (u_outside_lit == 1) continue;
+                        tc = clamp(tc, u_virtual_lo + 0.5, u_virtual_hi - 0.5);
+                    }
+                    ivec2 t = clamp(ivec2(floor(tc)), ivec2(0), u_map_size - 1);
+                    // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid
+                    // (c ± α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and
+                    // that lies close to the receiver (α(z) under a quarter of the kernel's) cannot hide the
+                    // light: it is the receiver's own curved surface, nearer than its tangent plane far out in
+                    // a wide kernel. Deeper occluders of a fused umbra keep counting (their light points are
+                    // covered by the z-average's plane, the model of Eq. 1).
+                    float z = texelFetch(u_depth_map, t, 0).r;
+                    vec2 own = filter_half_texels(z, g_depth);
+                    bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
+                        && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
+                    if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
+                        hidden += 1.0;
+                }
             }
-            ivec2 t = clamp(ivec2(floor(tc)), ivec2(0), u_map_size - 1);
-            // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid (c ±
-            // α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and that lies
-            // close to the receiver (α(z) under a quarter of the kernel's) cannot hide the light: it is the
-            // receiver's own curved surface, nearer than its tangent plane far out in a wide kernel. Deeper
-            // occluders of a fused umbra keep counting (their light points are covered by the z-average's
-            // plane, the model of Eq. 1).
-            float z = texelFetch(u_depth_map, t, 0).r;
-            vec2 own = filter_half_texels(z, g_depth);
-            bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
-                && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
-            if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
-                occ += w;
+            occ += w * hidden / float(sub * sub);
         }
     }
     return vec2(occ, total);
