@@ -107,6 +107,14 @@ def test_fixed_scene_within_bound(fixed_rows, seed, technique):
     assert r.status == "ok", fuzz.format_row(r)
 
 
+@pytest.mark.parametrize("seed", [pytest.param(s, marks=[pytest.mark.xfail(strict=True, reason=KNOWN_FAILURES[("PVSM", s)])]
+                                  if ("PVSM", s) in KNOWN_FAILURES else []) for s in FIXED_SEEDS])
+def test_pvsm_adaptive_fixed_scene_within_bound(seed):
+    """PVSM's adaptive tiles (issue 13) on the same scenes, within PVSM's bound."""
+    (r,) = fuzz.score_scene(seed, ["PVSM"], overrides={"pvsm_mode": "ADAPTIVE"})
+    assert r.status == "ok", fuzz.format_row(r)
+
+
 def _one_object_scene(primitive, scale, rotation, light, location=(0.0, 0.0, 1.0), transform="flattened"):
     return dict(seed=0, objects=[dict(name="Obj", primitive=primitive, transform=transform, location=list(location),
                                       rotation=list(rotation), scale=list(scale), smooth=True)],

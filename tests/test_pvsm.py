@@ -63,6 +63,16 @@ def test_antialiasing_stays_close_to_the_closed_form(plane):
     assert err[on_ground & (exact < 0.99)].mean() < 0.02
 
 
+@pytest.mark.parametrize("cell_samples", [2, 3])
+def test_cell_samples_keep_the_closed_form(plane, cell_samples):
+    """Several depth tests per coarse cell (against aliasing of sub-cell geometry) keep every cell's weight:
+    the parallel planes' exact answer stays within the same bound."""
+    snap, pts, exact = plane
+    err, on_ground = _ground_error(snap, pts, exact, _render(snap, pvsm_weighting="UNIFORM",
+                                                              pvsm_cell_samples=cell_samples))
+    assert err[on_ground & (exact < 0.99)].mean() < 0.01
+
+
 def test_fully_lit_skip_never_darkens_a_lit_pixel(plane):
     """Pixels the closed form calls fully lit are exactly 1 with the skip, and the skip never makes a pixel
     darker than the full filter."""
@@ -137,3 +147,119 @@ def test_perceptual_metric_is_the_papers_cubic_held_to_its_range():
     n = 2.0 ** np.linspace(0, 9, 50)
     for kind in ("DYNAMIC", "STATIC", "LINEAR"):
         assert np.all(np.diff(pvsm.rho(n, kind)) >= 0), kind
+
+
+# ---- adaptive mode (§5.2): tile grid, kd-tree, per-tile maps, Σ V·A / Σ A merge ---------------------------
+
+def test_kd_tiles_partition_every_reached_cell_once():
+    """Random grids of needed levels: the leaves cover each reached cell exactly once and nothing outside the
+    grid, each leaf at the finest level of the cells under it and within the tile size (or one cell)."""
+    rng = np.random.default_rng(3)
+    for trial in range(30):
+        size, cells_x, cells_y = 64, int(rng.integers(1, 65)), int(rng.integers(1, 65))
+        cell, tile_size = int(rng.choice([1, 2, 16])), int(rng.choice([16, 64, 512]))
+        need = np.full((size, size), pvsm.EMPTY)
+        reached = rng.random((cells_y, cells_x)) < rng.random()
+        need[:cells_y, :cells_x] = np.where(reached, rng.integers(-2, 5, (cells_y, cells_x)), pvsm.EMPTY)
+        cover = np.zeros((size, size), int)
+        for i0, j0, i1, j1, k in pvsm.kd_tiles(need, cell, tile_size, cells_x, cells_y):
+            assert 0 <= i0 < i1 <= cells_x and 0 <= j0 < j1 <= cells_y
+            assert k == need[j0:j1, i0:i1].max()
+            assert (i1 - i0 == 1 and j1 - j0 == 1) or max(i1 - i0, j1 - j0) * cell * 2.0 ** k <= tile_size
+            cover[j0:j1, i0:i1] += 1
+        assert (cover[:cells_y, :cells_x][reached] == 1).all(), trial
+        assert cover.max() <= 1 and cover[cells_y:].sum() == 0 and cover[:, cells_x:].sum() == 0
+
+
+def test_grid_levels_push_coarse_splats_down():
+    """A texel size splatted into a coarse pyramid cell holds for every cell under it; the finest need wins."""
+    side = 4
+    atlas = np.full((2 * side, side), np.inf, np.float32)
+    atlas[side + 1, 0] = 0.5            # level 1, cell (0, 1): level-0 cells x 0–1, y 2–3 need 2^-1
+    atlas[3, 1] = 0.1                   # level 0, cell (1, 3): needs 2^-4 (held to k_max 3)
+    k = pvsm.grid_levels(atlas, side, (-2, 3))
+    expect = np.full((side, side), pvsm.EMPTY)
+    expect[2:4, 0:2] = 1
+    expect[3, 1] = 3
+    np.testing.assert_array_equal(k, expect)
+
+
+def _adaptive(snap, **options):
+    return _render(snap, pvsm_mode="ADAPTIVE", collect_stats=True, **options)
+
+
+def _tiles(result):
+    return result.stats["per_light"][0]
+
+
+def test_adaptive_at_the_low_resolution_matches_one_map():
+    """Sixteen 8² tiles of a virtual map as fine as the 32² low-resolution map are that one map: the same
+    texels and the same kernels, split across tiles and merged by Σ V·A / Σ A."""
+    snap = floating_plane(96, light_size=0.3)
+    one = _render(snap, shadow_map_size=32)
+    tiled = _adaptive(snap, shadow_map_size=32, pvsm_tile_size=8, pvsm_max_resolution=32, pvsm_min_resolution=32)
+    assert _tiles(tiled)["tiles"] >= 8 and _tiles(tiled)["tile_levels"] == [0]
+    v_one, v_tiled = _visibility(one), _visibility(tiled)
+    assert (v_one < 0.99).sum() > 300
+    assert np.abs(v_tiled - v_one).max() < 1e-4
+
+
+@pytest.mark.parametrize("base, resolution, tile, aa", [(128, 64, 16, False), (32, 64, 16, False),
+                                                       (32, 128, 16, True)], ids=["coarser", "finer", "finer_aa"])
+def test_tile_borders_are_seamless(base, resolution, tile, aa):
+    """Many tiles against one tile of the same virtual map (coarser and finer than the low-resolution map):
+    V is continuous across tile borders, so the two agree everywhere."""
+    snap = floating_plane(96, light_size=0.3)
+    options = dict(shadow_map_size=base, pvsm_max_resolution=resolution, pvsm_min_resolution=resolution,
+                   pvsm_antialiasing=aa)
+    many, one = _adaptive(snap, pvsm_tile_size=tile, **options), _adaptive(snap, pvsm_tile_size=16384, **options)
+    assert _tiles(many)["tiles"] >= 8 and _tiles(one)["tiles"] == 1
+    v_many, v_one = _visibility(many), _visibility(one)
+    assert (v_one < 0.99).sum() > 300
+    assert np.abs(v_many - v_one).max() < 1e-4
+
+
+def test_adaptive_stays_close_to_the_closed_form(plane):
+    """Predicted tiles on parallel planes (sixteen 64² tiles of a 256² virtual map): the merged tiles give the
+    exact box filter's answer to within the discretisation, as one map does."""
+    snap, pts, exact = plane
+    result = _adaptive(snap, shadow_map_size=256, pvsm_weighting="UNIFORM", pvsm_tile_size=64)
+    err, on_ground = _ground_error(snap, pts, exact, result)
+    assert _tiles(result)["tiles"] >= 2
+    assert err[on_ground & (exact < 0.99)].mean() < 0.01
+
+
+def test_adaptive_fully_lit_skip_never_darkens_a_lit_pixel(plane):
+    snap, pts, exact = plane
+    with_skip = _adaptive(snap, shadow_map_size=256, pvsm_skip_lit=True, pvsm_tile_size=64)
+    without = _adaptive(snap, shadow_map_size=256, pvsm_skip_lit=False, pvsm_tile_size=64)
+    on_ground = np.abs(with_skip.passes["Depth"][..., 0] - _ground_depth(snap, pts)) < 1e-3
+    v_skip, v_full = _visibility(with_skip), _visibility(without)
+    lit = on_ground & (exact >= 1.0)
+    assert lit.sum() > 1000 and (v_skip[lit] == 1.0).all()
+    assert (v_skip >= v_full - 1e-6).all()
+
+
+@pytest.mark.parametrize("name, occ_height, light_size", [("contact", 0.001, 1.0), ("at_light", 2.999, 1.0),
+                                                         ("point_like", 1.0, 1e-6)])
+def test_adaptive_singular_filters_stay_finite(name, occ_height, light_size):
+    """α → 0, α → ∞ and a vanishing light: the predicted texel sizes stay finite (the point-like light's
+    kernel is held to the pixel's footprint), so do the tiles and V."""
+    snap = floating_plane(SIZE, occluder_height=occ_height, light_size=light_size)
+    result = _adaptive(snap, shadow_map_size=256, pvsm_antialiasing=True)
+    v = _visibility(result)
+    assert (name == "contact" or _tiles(result)["tiles"] >= 1) and _tiles(result)["tiles"] <= 64
+    if name == "point_like":
+        hard = pipeline.render(snap, RenderSettings(technique="HARD", shadow_map_size=1024))
+        assert np.mean(np.abs(v - hard.passes["Visibility"][..., 0]) > 0.5) < 0.02
+
+
+def test_technique_reaches_gl_only_through_the_frame():
+    """The tile loop builds its maps through the structure builders and dispatches through the Frame: the
+    technique module sets no GL state of its own."""
+    import ast
+    import inspect
+    tree = ast.parse(inspect.getsource(pvsm))
+    names = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    raw = {"ctx", "framebuffer", "enable", "disable", "viewport", "depth_texture", "blend_func", "use"}
+    assert not names & raw, names & raw

@@ -388,3 +388,12 @@ def ortho(window, near: float, far: float) -> np.ndarray:
     m[1, 3] = -(y1 + y0) / (y1 - y0)
     m[2, 3] = -(far + near) / (far - near)
     return m
+
+
+def sub_view(view: LightView, window, width: int, height: int) -> LightView:
+    """The same eye, frame and depth range as `view` over another window (a part of, or past, its own) at
+    width × height texels: one tile of a virtual shadow map built on `view`."""
+    window = tuple(float(v) for v in window)
+    proj = ortho(window, view.near, view.far) if view.is_ortho else frustum(window, view.near, view.far)
+    return LightView(view.view, proj, int(width), int(height), view.near, view.far, view.is_ortho, window,
+                     view.clamped, frame=view.frame, face=view.face)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.lightview import LightView
+from ..core.lightview import LightView, sub_view
 from ..core.options import known_options
 from ..gpu.frame import NO_OCCLUDER
 from ..gpu.programs import mat_uniform, program, set_uniforms
@@ -109,8 +109,13 @@ def render(frame, view: LightView, quantiser: str = "POW5") -> ConservativeMap:
 
 
 @structure(CONSERVATIVE_MAP)
-def build(frame, lc):
+def build(frame, lc, size: int | None = None):
     # The quantiser is a setting of the technique that reads the texels (SPSM's `spsm_quantiser`); the
     # structure looks it up through the option catalogue so that it never imports a technique.
     quantiser = frame.settings.option("spsm_quantiser") if "spsm_quantiser" in known_options() else "POW5"
-    return render(frame, lc.view, quantiser)
+    view = lc.view
+    if size is not None and size < max(view.width, view.height):
+        # A coarser map over the same window (PVSM's low-resolution search map, Shen et al. 2011 §5.2 step 2).
+        scale = size / max(view.width, view.height)
+        view = sub_view(view, view.window, max(1, round(view.width * scale)), max(1, round(view.height * scale)))
+    return render(frame, view, quantiser)

@@ -12,6 +12,14 @@
 #ifndef INFO
 #define INFO 0          // 1: write the debug/statistics image
 #endif
+// MODE 0: fixed resolution (one map, V straight into u_visibility). The adaptive mode (§5.2) runs three:
+// MODE 1 (steps 3–4): z-averaging into the kernel shape buffer and the predicted texel size of every pixel
+//        into the shadow map tile grid (min by atomics);
+// MODE 2 (step 8): one tile's filtering, adding its Σ V·A and Σ A to the merge buffer;
+// MODE 3: the merge, V = Σ V·A / Σ A.
+#ifndef MODE
+#define MODE 0
+#endif
 
 // The "low-resolution map" of §4 step 3 and three coarser ones, each halving (glsl/pvsm/reduce.comp): every
 // cell the minimum depth of the search-map texels it covers.
@@ -24,14 +32,38 @@ uniform vec2 u_search_scale;      // search-map texels per filtering-map texel
 uniform sampler2D u_depth_map;    // the filtering map
 uniform int u_filter_levels;      // levels of its (virtual) pyramid: level l keeps every 2^l-th texel
 uniform int u_cap;                // most texels per axis one kernel loop visits: a coarser level beyond it
+uniform int u_sub;                // depth tests per axis in a cell of a level coarser than the map's own
 uniform float u_max_radius;       // cap on the search half extent, level-0 texels
 uniform int u_skip_lit;
 uniform int u_outside_lit;        // 1: every caster lies inside the map, so past its edge nothing occludes
 uniform int u_aa;
 uniform int u_rho;                // 0: finest level under the cap; 1: ρ_dynamic; 2: ρ_static; 3: linear in log2 n
 uniform mat4 u_inv_view_proj;     // camera clip → world
+#if MODE == 0 || MODE == 3
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
+#endif
 layout(rgba32f, binding = 1) uniform writeonly image2D u_info;   // class, level, screen size n, texels visited
+// Adaptive mode. Tile pass coordinates are the tile's own map texels (its LightView's uniforms); the virtual
+// map it is a window of spans u_virtual_lo … u_virtual_hi in them.
+#if MODE == 1
+layout(rgba32f, binding = 0) uniform writeonly image2D u_kernel;  // z_avg, blocker weight, texel size, class
+layout(r32ui, binding = 2) uniform coherent uimage2D u_grid;      // tile grid pyramid, packed (see pvsm.py)
+uniform float u_grid_cell;        // search-map texels per level-0 grid cell
+uniform int u_grid_size;          // level-0 cells per axis (a power of two)
+#endif
+#if MODE == 2 || MODE == 3
+uniform sampler2D u_kernel;
+#endif
+#if MODE == 2
+layout(rgba32f, binding = 0) uniform image2D u_merge;              // Σ V·A, Σ A, texels visited
+#endif
+#if MODE == 3
+uniform sampler2D u_merge;
+#endif
+uniform vec4 u_clip;              // x0, y0, x1, y1: the part of the kernel this map owns (texels)
+uniform vec2 u_virtual_lo;        // the virtual map's extent (texels of this map)
+uniform vec2 u_virtual_hi;
+uniform float u_area_scale;       // this map's texel area in level-0 search-map texels (merge units)
 
 const float TINY = 1e-4;          // texels: the smallest kernel half extent (a hard test of one texel)
 
@@ -181,15 +213,20 @@ float rho(float n) {
 
 // Eq. 4–5: the kernel's screen sizes n0, n1 along the map axes and the texel size r = 2·extent/ρ(n) they
 // need; the level is the coarsest whose texels (2^l) are no larger than r. -1 when the footprint is singular.
-int perceptual_level(mat2 phi, mat2 h, out float n_screen) {
+float perceptual_texel(mat2 phi, mat2 h, out float n_screen) {
     float det = determinant(phi);
     n_screen = 0.0;
-    if (!(abs(det) > 1e-12)) return -1;
+    if (!(abs(det) > 1e-12)) return -1.0;
     mat2 inv = inverse(phi);
     float n0 = length(inv * vec2(h[0].x, 0.0)), n1 = length(inv * h[1]);
     n_screen = max(n0, n1);
     float r0 = 2.0 * abs(h[0].x) / rho(n0), r1 = 2.0 * abs(h[1].y) / rho(n1);
-    float r = min(r0, r1);
+    return min(r0, r1);
+}
+
+int perceptual_level(mat2 phi, mat2 h, out float n_screen) {
+    float r = perceptual_texel(phi, h, n_screen);
+    if (r < 0.0) return -1;
     return r >= 1.0 ? int(floor(log2(r))) : 0;
 }
 
@@ -197,14 +234,18 @@ int perceptual_level(mat2 phi, mat2 h, out float n_screen) {
 // Occluded share of the semi-axis-aligned parallelogram c + s·u + t·v, |s|, |t| ≤ 1 (v vertical), at level
 // l: each cell a constant-depth quad weighted by its overlap with the kernel, every one-cell column of the
 // kernel taken as an axis-aligned box (the paper's vertical panels). Normalised by the kernel's actual
-// area (Σ weights), so any size stays finite.
-float occluded_share(vec2 c, mat2 h, int l) {
+// area (Σ weights), so any size stays finite. kernel_sums returns (occluded weight, total weight) over the
+// part of the kernel inside u_clip (a tile's own rectangle; unbounded for one map), whose cells it samples
+// inside the tile: over tiles that partition the virtual map the sums add up to the one-map sums (§5.2's
+// merge), exactly where the tiles' cells line up with the virtual map's.
+vec2 kernel_sums(vec2 c, mat2 h, int l) {
     vec2 u = h[0], v = h[1];
     float s = float(1 << l);
-    ivec2 cells = level_cells(u_map_size, l);
     float hx = max(abs(u.x), TINY), hy = max(v.y, TINY);
     float slope = abs(u.x) > TINY ? u.y / u.x : 0.0;
-    int i0 = int(floor((c.x - hx) / s)), i1 = int(floor((c.x + hx) / s));
+    float cx0 = max(c.x - hx, u_clip.x), cx1 = min(c.x + hx, u_clip.z);
+    if (!(cx1 > cx0)) return vec2(0.0);
+    int i0 = int(floor(cx0 / s)), i1 = int(floor(cx1 / s));
 #if WEIGHTED
     // Kernel coordinates → light plane: the kernel's bounding box is the light (exact without AA, where the
     // kernel is the light seen through the blocker plane; stretched over the pixel footprint with AA).
@@ -215,11 +256,12 @@ float occluded_share(vec2 c, mat2 h, int l) {
 #endif
     float occ = 0.0, total = 0.0;
     for (int i = i0; i <= i1; ++i) {
-        float xa = max(float(i) * s, c.x - hx), xb = min(float(i + 1) * s, c.x + hx);
+        float xa = max(float(i) * s, cx0), xb = min(float(i + 1) * s, cx1);
         float wx = xb - xa;
         if (!(wx > 0.0)) continue;
         float yc = c.y + slope * (0.5 * (xa + xb) - c.x);
-        float ya = yc - hy, yb = yc + hy;
+        float ya = max(yc - hy, u_clip.y), yb = min(yc + hy, u_clip.w);
+        if (!(yb > ya)) continue;
         int j0 = int(floor(ya / s)), j1 = int(floor(yb / s));
         for (int j = j0; j <= j1; ++j) {
             float wy = min(float(j + 1) * s, yb) - max(float(j) * s, ya);
@@ -239,66 +281,178 @@ float occluded_share(vec2 c, mat2 h, int l) {
 #endif
             total += w;
             ++g_visited;
-            // A cell of level l is the level-0 texel at its centre, as a map rendered 2^l times coarser
-            // would sample it. Past the map's edge: lit when every caster lies inside the map, else the
-            // edge texel continued outwards (compared where it lies, so a surface never shadows itself).
-            ivec2 t = ivec2((vec2(i, j) + 0.5) * s);
-            if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) {
-                if (u_outside_lit == 1) continue;
-                t = clamp(t, ivec2(0), u_map_size - 1);
+            // A cell of level l is the level-0 texels at the centres of its u_sub × u_sub sub-cells (one: the
+            // texel at its centre, as a map rendered 2^l times coarser would sample it), each tested on its
+            // own: one point per cell aliases geometry finer than the cell (a grid of thin bars beats with the
+            // level's sampling into a moiré). Past the map's edge: lit when every caster lies inside the map,
+            // else the edge texel continued outwards (compared where it lies, so a surface never shadows
+            // itself). A tile reads the cells its rectangle cuts at its own border texels.
+            int sub = l > 0 ? u_sub : 1;
+            float hidden = 0.0;
+            for (int b = 0; b < sub; ++b) {
+                for (int a = 0; a < sub; ++a) {
+                    vec2 tc = (vec2(i, j) + (vec2(a, b) + 0.5) / float(sub)) * s;
+                    if (any(lessThan(tc, u_virtual_lo)) || any(greaterThanEqual(tc, u_virtual_hi))) {
+                        if (u_outside_lit == 1) continue;
+                        tc = clamp(tc, u_virtual_lo + 0.5, u_virtual_hi - 0.5);
+                    }
+                    ivec2 t = clamp(ivec2(floor(tc)), ivec2(0), u_map_size - 1);
+                    // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid
+                    // (c ± α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and
+                    // that lies close to the receiver (α(z) under a quarter of the kernel's) cannot hide the
+                    // light: it is the receiver's own curved surface, nearer than its tangent plane far out in
+                    // a wide kernel. Deeper occluders of a fused umbra keep counting (their light points are
+                    // covered by the z-average's plane, the model of Eq. 1).
+                    float z = texelFetch(u_depth_map, t, 0).r;
+                    vec2 own = filter_half_texels(z, g_depth);
+                    bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
+                        && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
+                    if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
+                        hidden += 1.0;
+                }
             }
-            // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid (c ±
-            // α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and that lies
-            // close to the receiver (α(z) under a quarter of the kernel's) cannot hide the light: it is the
-            // receiver's own curved surface, nearer than its tangent plane far out in a wide kernel. Deeper
-            // occluders of a fused umbra keep counting (their light points are covered by the z-average's
-            // plane, the model of Eq. 1).
-            float z = texelFetch(u_depth_map, t, 0).r;
-            vec2 own = filter_half_texels(z, g_depth);
-            bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
-                && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
-            if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
-                occ += w;
+            occ += w * hidden / float(sub * sub);
         }
     }
-    return total > 0.0 ? clamp(occ / total, 0.0, 1.0) : 0.0;
+    return vec2(occ, total);
 }
+
+float occluded_share(vec2 c, mat2 h, int l) {
+    vec2 sums = kernel_sums(c, h, l);
+    return sums.y > 0.0 ? clamp(sums.x / sums.y, 0.0, 1.0) : 0.0;
+}
+
+// The kernel of Eq. 1 (with the pixel footprint under anti-aliasing) around the receiver, in this map's
+// texels, from the blockers' mean depth; sets g_light_e.
+mat2 soft_kernel(float z_avg, float weight, mat2 phi) {
+    vec2 e = weight > 0.0 ? filter_half_texels(z_avg, g_depth) : vec2(0.0);
+    vec2 span = u_virtual_hi - u_virtual_lo;
+    e = min(e, vec2(max(span.x, span.y)));     // α → ∞ (occluder at the light)
+    g_light_e = e;
+    mat2 h = mat2(vec2(e.x, 0.0), vec2(0.0, e.y));
+    if (u_aa == 1) h = convolve(h, phi);
+    return h;
+}
+
+// The filtering level: the finest under the cap, or coarser where ρ(n) allows (§5.1).
+int filter_level(mat2 phi, mat2 h, out float n_screen) {
+    int l = cap_level(max(abs(h[0].x), h[1].y + abs(h[0].y)), u_filter_levels);
+    n_screen = 0.0;
+    if (u_rho != 0) l = max(l, min(perceptual_level(phi, h, n_screen), u_filter_levels - 1));
+    return l;
+}
+
+#if MODE == 1
+// Step 4: the texel size (search-map texels) this pixel's kernel needs — the cap's, ρ's (§5.1, Eq. 5) and
+// no finer than the pixel's own footprint on the map, which no viewer resolves — min-blended into every tile
+// grid cell its kernel's bounding box covers. The paper splats one point, into the receiver's own cell; a
+// kernel reaching a cell that no pixel projects onto would then read a map that was never rendered. The box
+// goes into the pyramid level where it spans at most 2×2 cells (a coarse cell's value holds for the cells
+// under it), so each pixel costs at most four atomics. Positive floats order like their bit patterns.
+float predicted_texel(mat2 phi, mat2 h) {
+    float r = 2.0 * max(abs(h[0].x), h[1].y + abs(h[0].y)) / float(u_cap);
+    float n_screen;
+    if (u_rho != 0) r = max(r, perceptual_texel(phi, h, n_screen));
+    r = max(r, 2.0 * sqrt(abs(determinant(phi))));
+    return r > 0.0 ? r : 1e-30;         // a degenerate kernel and footprint (or NaN): the finest level
+}
+
+void splat(vec2 c, mat2 h, float r) {
+    vec2 ext = vec2(abs(h[0].x), h[1].y + abs(h[0].y));
+    vec2 lo = clamp((c - ext) / u_grid_cell, vec2(0.0), vec2(u_grid_size) - 0.5);
+    vec2 hi = clamp((c + ext) / u_grid_cell, vec2(0.0), vec2(u_grid_size) - 0.5);
+    if (any(isnan(lo)) || any(isnan(hi))) return;
+    int level = 0, row = 0, n = u_grid_size;
+    ivec2 a = ivec2(lo), b = ivec2(hi);
+    while (n > 1 && any(greaterThan(b - a, ivec2(1)))) {
+        row += n;
+        n >>= 1;
+        ++level;
+        a = ivec2(lo / float(1 << level));
+        b = ivec2(hi / float(1 << level));
+    }
+    uint bits = floatBitsToUint(r);
+    for (int j = a.y; j <= b.y; ++j)
+        for (int i = a.x; i <= b.x; ++i)
+            imageAtomicMin(u_grid, ivec2(i, row + j), bits);
+}
+#endif
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
+#if MODE == 3
+    // The merge: V = Σ V·A / Σ A over the tiles the kernel reached; a pixel with no kernel stays lit.
+    vec4 k = texelFetch(u_kernel, px, 0);
+    vec4 m = texelFetch(u_merge, px, 0);
+    float v = k.w == 2.0 && m.y > 0.0 ? clamp(m.x / m.y, 0.0, 1.0) : 1.0;
+    imageStore(u_visibility, px, vec4(v));
+#if INFO
+    imageStore(u_info, px, vec4(k.w, k.z > 0.0 ? -log2(k.z) : 0.0, 0.0, m.z));
+#endif
+#else
     float v = 1.0;
     vec4 info = vec4(-1.0, 0.0, 0.0, 0.0);
     g_visited = 0;
+#if MODE == 1
+    vec4 kernel = vec4(0.0, 0.0, 0.0, -1.0);
+#endif
+#if MODE == 2
+    vec4 k = texelFetch(u_kernel, px, 0);
+    if (k.w != 2.0) return;             // not reached, or fully lit: no tile filters it
+#endif
     if (pixel_lit(px)) {
         vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
         g_r = make_receiver(p, ng);
         g_depth = g_r.map.z - g_r.bias;
         mat2 phi = mat2(0.0);
-        if (u_aa == 1 || u_rho != 0) phi = pixel_footprint(px, p, ng);
+        if (u_aa == 1 || u_rho != 0 || MODE == 1) phi = pixel_footprint(px, p, ng);
         vec2 pad = u_aa == 1 ? abs(phi[0]) + abs(phi[1]) : vec2(0.0);
         g_pad = pad;
+#if MODE == 2
+        vec2 blockers = k.xy;
+#else
         // Search box: the light seen from the receiver through the near plane, capped.
         vec2 search = clamp(filter_half_texels(u_light_depth_range.x, g_depth), vec2(0.5), vec2(u_max_radius));
         vec2 blockers = average_blockers(g_r.map.xy * u_search_scale, search * u_search_scale,
                                          pad * u_search_scale);
+#endif
         info.x = 0.0;
         if (blockers.y > 0.0 || u_skip_lit == 0) {
-            vec2 e = blockers.y > 0.0 ? filter_half_texels(blockers.x, g_depth) : vec2(0.0);
-            e = min(e, vec2(float(max(u_map_size.x, u_map_size.y))));     // α → ∞ (occluder at the light)
-            g_light_e = e;
-            mat2 h = mat2(vec2(e.x, 0.0), vec2(0.0, e.y));
-            if (u_aa == 1) h = convolve(h, phi);
-            int l = cap_level(max(abs(h[0].x), h[1].y + abs(h[0].y)), u_filter_levels);
-            float n_screen = 0.0;
-            if (u_rho != 0) l = max(l, min(perceptual_level(phi, h, n_screen), u_filter_levels - 1));
-            v = 1.0 - occluded_share(g_r.map.xy, h, l);
+            mat2 h = soft_kernel(blockers.x, blockers.y, phi);
+#if MODE == 1
+            float r = predicted_texel(phi, h);
+            splat(g_r.map.xy, h, r);
+            kernel = vec4(blockers, r, 2.0);
+#else
+            float n_screen;
+            int l = filter_level(phi, h, n_screen);
+            vec2 sums = kernel_sums(g_r.map.xy, h, l);
+#if MODE == 2
+            if (g_visited > 0) {
+                vec4 m = imageLoad(u_merge, px);
+                imageStore(u_merge, px, m + vec4((sums.y - sums.x) * u_area_scale, sums.y * u_area_scale,
+                                                 float(g_visited), 0.0));
+            }
+            return;
+#else
+            v = sums.y > 0.0 ? 1.0 - clamp(sums.x / sums.y, 0.0, 1.0) : 1.0;
             info = vec4(blockers.y > 0.0 ? 2.0 : 0.0, float(l), n_screen, 0.0);
+#endif
+#endif
         }
+#if MODE == 1
+        else kernel.w = 0.0;
+#endif
         info.w = float(g_visited);
     }
+#if MODE == 1
+    imageStore(u_kernel, px, kernel);
+#elif MODE == 0
     imageStore(u_visibility, px, vec4(v));
 #if INFO
     imageStore(u_info, px, info);
+#endif
+#endif
 #endif
 }

@@ -8,7 +8,7 @@ STUDIES = {
     "backprojection": "Schwarz & Stamminger 2007, bitmask soft shadows: Tables 2/3 columns",
     "ssm": "Atty et al. 2006, soft shadow maps: map size, precision, timing (§4.2, §5.2.3)",
     "spsm": "Lecocq et al. 2014, sub-pixel shadow maps vs HARD: pixel match, time, look-up shares, quantiser",
-    "pvsm": "Shen et al. 2011, predicted virtual soft shadow maps: closed form, anti-aliasing, stages, ρ",
+    "pvsm": "Shen et al. 2011, predicted virtual soft shadow maps: closed form, anti-aliasing, stages, ρ, tiles",
 }
 
 

@@ -10,14 +10,19 @@ fixed-resolution mode, on scenes whose visibility has a closed form (no Cycles n
            the box-filtered closed form (each pixel the mean of the exact visibility over its footprint on the
            ground, 64×64 points) for the analytic anti-aliasing of §4.2 against screen-space supersampling
            8×8 and 32×32 without it (the paper: as good as 32×32 at ~1/9 of 8×8's time), with times;
-  stages   milliseconds per stage (Table 1's columns that exist here: G-buffer, shadow map, search map,
-           filtering);
+  stages   milliseconds per stage (Table 1's columns: G-buffer, low-resolution map, z-averaging, tile grid
+           and tiling, tile maps, filtering) for the fixed and the adaptive mode;
   rho      the finest level under the kernel cap against ρ_dynamic (the cubic), ρ_static and a line in
-           log2 n (the paper's Fig. 8 foil), each with its error and time.
+           log2 n (the paper's Fig. 8 foil), each with its error and time;
+  rho_time ρ_dynamic against the line at equal time: each over kernel caps 8 … 256, the line's error read off
+           its (time, error) curve at the cubic's time;
+  table2   adaptive tiles (low-resolution map `--map`, tiles up to 4096²) against one fixed 4096² map, for a
+           small and a large light over the parallel planes: time and error against the closed form (the
+           paper's Table 2: adaptive at 0.73× fixed's speed for its small light, 2.96× for its large one);
+  fig10    a point-like light against an area light: tiles, tile texels, time (the paper's Fig. 10: fewer
+           tiles and about twice the speed for the soft shadow).
 
-The adaptive tiles (§5.2 steps 4–7) are not implemented, so Table 2 (adaptive against a fixed 4096² map) and
-Fig. 10 (tile counts for a point and an area light) are not reproduced. Writes DIR/pvsm_study.json and
-DIR/pvsm_study.md atomically.
+Writes DIR/pvsm_study.json and DIR/pvsm_study.md atomically.
 """
 from __future__ import annotations
 
@@ -159,16 +164,102 @@ def antialiasing(size, map_size, repeats, log):
     return rows
 
 
+ADAPTIVE = {"pvsm_mode": "ADAPTIVE", "pvsm_tile_size": 4096}
+FIXED_BIG = 4096            # the paper's fixed map for Table 2
+STAGES = ("gbuffer", "shadow_map", "pvsm_search_map", "pvsm_predict", "pvsm_tiling", "pvsm_tile_maps",
+          "pvsm_filter", "irradiance", "accumulate")
+
+
 def stages(size, map_size, repeats, log):
+    """Table 1's columns; `shadow_map` is the pipeline's structures (the low-resolution search map, and
+    the one filtering map in the fixed mode), `pvsm_predict` z-averaging with the tile grid."""
     snap = stress.plane_scene(name="plane_stages")
     snap = replace(snap, camera=replace(snap.camera, width=size, height=size))
-    s = RenderSettings(technique="PVSM", shadow_map_size=map_size)
-    r, ms = _render(snap, s, repeats)
-    keep = ("gbuffer", "shadow_map", "pvsm_search_map", "pvsm_filter", "irradiance", "accumulate")
-    row = {k: float(r.timings.get(k, 0.0)) for k in keep}
-    row["frame_ms"] = ms
-    log("stages: " + ", ".join(f"{k} {v:.1f}" for k, v in row.items()))
-    return row
+    rows = []
+    for mode, options in (("FIXED", {}), ("ADAPTIVE", ADAPTIVE)):
+        s = RenderSettings(technique="PVSM", shadow_map_size=map_size, collect_stats=True).with_(**options)
+        r, ms = _render(snap, s, repeats)
+        row = {"mode": mode, **{k: float(r.timings.get(k, 0.0)) for k in STAGES}, "frame_ms": ms,
+               "tiles": (r.stats.get("per_light") or [{}])[0].get("tiles", 0)}
+        rows.append(row)
+        log("stages: " + ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()))
+    return rows
+
+
+def _plane_error(snap, size, light_size, r):
+    exact = plane_exact(ground_hits(snap.camera, size, size)[:, :, 0], light_half=light_size / 2.0)
+    v = r.passes["Visibility"][..., 0]
+    ground = np.abs(r.passes["Depth"][..., 0] - _ground_depth(snap, size)) < 1e-3
+    m = ground & ((exact < 0.99) | (v < 0.99))
+    return float(np.abs(v - exact)[m].mean()) if m.any() else 0.0
+
+
+def _light_rows(size, map_size, repeats, log, lights, configs, tag):
+    rows = []
+    for light_name, light_size in lights:
+        snap = stress.plane_scene(light_size=light_size, name=f"plane_{tag}_{light_name}")
+        snap = replace(snap, camera=replace(snap.camera, width=size, height=size))
+        for config, shadow_map, options in configs:
+            s = RenderSettings(technique="PVSM", shadow_map_size=shadow_map, collect_stats=True).with_(**options)
+            r, ms = _render(snap, s, repeats)
+            per = (r.stats.get("per_light") or [{}])[0]
+            rows.append({"light": light_name, "light_size": light_size, "config": config, "ms": ms,
+                         "mean_error": _plane_error(snap, size, light_size, r), "tiles": per.get("tiles", 1),
+                         "tile_texels": per.get("tile_texels", shadow_map * shadow_map),
+                         "levels": str(per.get("tile_levels", "")),
+                         "shadow_map_ms": float(r.timings.get("shadow_map", 0.0) + r.timings.get("pvsm_tile_maps", 0.0)),
+                         "filter_ms": float(r.timings.get("pvsm_filter", 0.0))})
+            log(f"{tag} {light_name} {config}: {ms:.0f} ms, mean {rows[-1]['mean_error']:.4f}, "
+                f"{rows[-1]['tiles']} tiles")
+    return rows
+
+
+def table2(size, map_size, repeats, log):
+    """Adaptive against a fixed 4096² map; speed = fixed's time / adaptive's (the paper's ratio of FPS)."""
+    configs = [("fixed 4096²", FIXED_BIG, {}), (f"adaptive ({map_size}² + tiles ≤ 4096²)", map_size, ADAPTIVE)]
+    rows = _light_rows(size, map_size, repeats, log, (("small", 0.05), ("large", 2.0)), configs, "table2")
+    for light in ("small", "large"):
+        fixed, adaptive = (r for r in rows if r["light"] == light)
+        adaptive["speed_vs_fixed"] = fixed["ms"] / max(adaptive["ms"], 1e-9)
+        fixed["speed_vs_fixed"] = 1.0
+    return rows
+
+
+def fig10(size, map_size, repeats, log):
+    configs = [("adaptive", map_size, ADAPTIVE)]
+    return _light_rows(size, map_size, repeats, log, (("point-like", 1e-3), ("area", 1.0)), configs, "fig10")
+
+
+def rho_equal_time(size, map_size, repeats, log):
+    """(time, error) over kernel caps for ρ_dynamic and the line; the line's error at the cubic's times."""
+    snap = stress.plane_scene(name="plane_rho_time")
+    snap = replace(snap, camera=replace(snap.camera, width=size, height=size))
+    exact = plane_exact(ground_hits(snap.camera, size, size)[:, :, 0])
+    ground = None
+    curves = {}
+    for metric in ("DYNAMIC", "LINEAR"):
+        pts = []
+        for cap in (8, 16, 32, 64, 128, 256):
+            s = RenderSettings(technique="PVSM", shadow_map_size=map_size).with_(
+                pvsm_resolution=metric, pvsm_weighting="UNIFORM", pvsm_cap=cap)
+            r, ms = _render(snap, s, repeats)
+            v = r.passes["Visibility"][..., 0]
+            if ground is None:
+                ground = np.abs(r.passes["Depth"][..., 0] - _ground_depth(snap, size)) < 1e-3
+            m = ground & ((exact < 0.99) | (v < 0.99))
+            pts.append({"metric": metric, "cap": cap, "filter_ms": float(r.timings.get("pvsm_filter", 0.0)),
+                        "ms": ms, "mean_error": float(np.abs(v - exact)[m].mean())})
+        curves[metric] = pts
+    rows = []
+    line = sorted(curves["LINEAR"], key=lambda p: p["filter_ms"])
+    for p in curves["DYNAMIC"]:
+        t = p["filter_ms"]
+        lt, le = [q["filter_ms"] for q in line], [q["mean_error"] for q in line]
+        inside = lt[0] <= t <= lt[-1]
+        rows.append({**p, "linear_error_at_equal_time": float(np.interp(t, lt, le)) if inside else float("nan")})
+        log(f"rho equal time, cap {p['cap']}: cubic {p['mean_error']:.4f} at {t:.0f} ms, line "
+            f"{rows[-1]['linear_error_at_equal_time']:.4f}")
+    return {"curves": curves, "cubic_vs_line": rows}
 
 
 def rho_levels(size, map_size, repeats, log):
@@ -203,17 +294,30 @@ def run(out: Path, size: int, map_size: int, repeats: int, log=print) -> dict:
               "closed_form": closed_form(size, map_size, repeats, log),
               "antialiasing": antialiasing(size, map_size, repeats, log),
               "stages": stages(size, map_size, repeats, log),
-              "rho": rho_levels(size, map_size, repeats, log)}
+              "rho": rho_levels(size, map_size, repeats, log),
+              "rho_time": rho_equal_time(size, map_size, repeats, log),
+              "table2": table2(size, map_size, repeats, log),
+              "fig10": fig10(size, map_size, repeats, log)}
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / "pvsm_study.json", json.dumps(result, indent=2))
-    md = [f"# PVSM study ({size}² image, {map_size}² map, fixed-resolution mode)", "",
+    md = [f"# PVSM study ({size}² image, {map_size}² map; adaptive: {map_size}² low-resolution map)", "",
           "## Closed form, parallel planes (uniform weights)", "",
           _table(result["closed_form"], ["antialiasing", "mean_error", "p99", "pixels", "ms"]), "",
           "## Anti-aliasing on thin bars: error against the box-filtered closed form", "",
           _table(result["antialiasing"], ["method", "mean_error", "max_error", "ms", "pvsm_filter_ms"]), "",
-          "## Stages (ms)", "", _table([result["stages"]], list(result["stages"])), "",
+          "## Stages (ms, Table 1)", "", _table(result["stages"], list(result["stages"][0])), "",
           "## Resolution metric (kernel cap 256 so that only the metric picks coarser levels)", "",
-          _table(result["rho"], ["metric", "mean_error", "ms", "pvsm_filter_ms", "mean_level", "mean_cells"]), ""]
+          _table(result["rho"], ["metric", "mean_error", "ms", "pvsm_filter_ms", "mean_level", "mean_cells"]), "",
+          "## ρ cubic against the line at equal time (kernel caps 8 … 256; the line's error interpolated at the "
+          "cubic's filter time)", "",
+          _table(result["rho_time"]["cubic_vs_line"], ["cap", "filter_ms", "mean_error",
+                                                       "linear_error_at_equal_time"]), "",
+          "## Table 2: adaptive tiles against a fixed 4096² map (parallel planes, error against the closed form)",
+          "", _table(result["table2"], ["light", "light_size", "config", "ms", "speed_vs_fixed", "mean_error",
+                                        "tiles", "tile_texels", "levels", "shadow_map_ms", "filter_ms"]), "",
+          "## Fig. 10: point-like against area light (adaptive)", "",
+          _table(result["fig10"], ["light", "light_size", "ms", "mean_error", "tiles", "tile_texels", "levels",
+                                   "shadow_map_ms", "filter_ms"]), ""]
     write_atomic(out / "pvsm_study.md", "\n".join(md))
     return result
 
