@@ -132,10 +132,18 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, lit_xyz,
                                        irradiance, object_bounds, caster_objects, visibility, stats, debug)
         with t.stage("accumulate"):
-            frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
-                           samplers={"g_irradiance": irradiance, "u_visibility": visibility,
-                                     "u_visibility_rgb": rgb if rgb is not None else visibility},
-                           images={0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum})
+            samplers = {"g_irradiance": irradiance, "u_visibility": visibility,
+                        "u_visibility_rgb": rgb if rgb is not None else visibility}
+            images = {0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum}
+            if frame.gbuffer_samples:   # anti-aliased: shade every sample with the pixel's visibility (§7)
+                frame.dispatch("shading/accumulate_msaa.comp",
+                               {"u_has_rgb": int(rgb is not None), **light_uniforms(light),
+                                "u_aa_depth_threshold": float(settings.aa_depth_threshold)},
+                               samplers={**samplers, **frame.gbuffer_samples}, images=images,
+                               defines=light_defines(light))
+            else:
+                frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
+                               samplers=samplers, images=images)
         frame.end_light()                   # per-light structures (an MSSM) go before the next light
         frame.progress.step(1.0, f"{light.name}: done")
 
