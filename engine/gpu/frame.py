@@ -11,7 +11,7 @@ from ..core.lightview import LightView
 from ..core.shader_constants import NO_OCCLUDER
 from ..core.snapshot import SceneSnapshot
 from .geometry import SceneGeometry, SoupGeometry
-from .multisample import (GBUFFER_NAMES, MSAA_BYTES_PER_PIXEL, MSAA_SAMPLES, multisampled_targets,
+from .multisample import (GBUFFER_NAMES, MSAA_BYTES_PER_PIXEL, MSAA_SAMPLES, EdgeList, multisampled_targets,
                           resolve_first_sample)
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
 from .state import gl_state
@@ -187,17 +187,21 @@ class Frame:
         # Anti-aliasing (Schwarz & Stamminger 2008, §7) adds a multisampled G-buffer that only the shading
         # reads; the per-pixel one every technique reads is either drawn as without it (pixel centres) or
         # the multisamples' first (the paper's choice: see engine/gpu/multisample.py).
-        self.gbuffer_samples = None
+        self.gbuffer_samples = self.msaa_edges = None
         aa = getattr(self.settings, "antialiasing", False)
+        first = aa and self.settings.aa_visibility_sample == "FIRST"
         if aa:
-            self.gbuffer_samples = multisampled_targets(self, size)
+            self.gbuffer_samples = multisampled_targets(self, size, full=first)
             self._draw_gbuffer(self.gbuffer_samples, MSAA_SAMPLES, "gbuffer_msaa")
-        if aa and self.settings.aa_visibility_sample == "FIRST":
-            self.gbuffer = g            # dispatch binds it (the resolve shader samples none of it)
+        self.gbuffer = g                # dispatch binds it
+        if first:
             with self.timings.stage("gbuffer_resolve"):
                 resolve_first_sample(self, self.gbuffer_samples, g)
         else:
             self._draw_gbuffer(g, 0)
+        if aa:
+            with self.timings.stage("gbuffer_resolve"):
+                self.msaa_edges = self.own(EdgeList(self, self.gbuffer_samples))
         return g
 
     def _draw_gbuffer(self, targets: dict, samples: int, stage: str = "gbuffer") -> None:
@@ -275,16 +279,20 @@ class Frame:
 
     # ---- compute passes --------------------------------------------------------------------------------
     def dispatch(self, compute: str, uniforms: dict | None = None, samplers: dict | None = None,
-                 images: dict | None = None, defines: dict | None = None, size=None) -> None:
-        """Run glsl/`compute` once per image pixel. `samplers`: uniform name → texture; `images`: binding →
-        texture (bound read-write). The G-buffer is always bound under its own names."""
+                 images: dict | None = None, defines: dict | None = None, size=None, groups=None,
+                 buffers: dict | None = None) -> None:
+        """Run glsl/`compute` once per image pixel (or as `groups` work groups of 8×8). `samplers`: uniform
+        name → texture; `images`: binding → texture (bound read-write); `buffers`: binding → storage buffer.
+        The G-buffer is always bound under its own names."""
         prog = program(self.worker, compute=compute, defines=defines)
         w, h = size or (self.width, self.height)
         bind_samplers(prog, {**self.gbuffer, **(samplers or {})})
         for binding, tex in (images or {}).items():
             tex.bind_to_image(binding, read=True, write=True)
+        for binding, buf in (buffers or {}).items():
+            buf.bind_to_storage_buffer(binding)
         set_uniforms(prog, {"u_image_size": (w, h), **(uniforms or {})})
-        prog.run((w + 7) // 8, (h + 7) // 8, 1)
+        prog.run(*(groups or ((w + 7) // 8, (h + 7) // 8, 1)))
         self.ctx.memory_barrier()
 
 

@@ -15,17 +15,58 @@ pixel centre (extrapolated where the primitive does not cover it), and writes th
 primitive covers: samples of one primitive hold identical values, the camera depth in g_normal.w included."""
 from __future__ import annotations
 
+import numpy as np
+
+from ..core.shading import light_defines, light_uniforms
+
 GBUFFER_NAMES = ("g_position", "g_normal", "g_geometric", "g_albedo")
 MSAA_SAMPLES = 4
-# Four RGBA32F targets and a 32-bit depth buffer, per sample.
-MSAA_BYTES_PER_PIXEL = MSAA_SAMPLES * (len(GBUFFER_NAMES) * 16 + 4)
+# Per-sample formats: (components, dtype). Shading reads position, normal + depth and albedo as float32; the
+# geometric normal only the per-pixel G-buffer needs (biases), so with a pixel-centre visibility sample its
+# multisampled target is a one-byte placeholder that keeps the shader's output locations (a quarter less to
+# write); the first-sample resolve copies it, so there it stays RGBA32F.
+_FORMATS = {"g_position": (4, "f4"), "g_normal": (4, "f4"), "g_geometric": (1, "f1"), "g_albedo": (4, "f4")}
+# The targets and a 32-bit depth buffer, per sample (the larger, first-sample layout), and the edge list.
+MSAA_BYTES_PER_PIXEL = MSAA_SAMPLES * (len(GBUFFER_NAMES) * 16 + 4) + 8
 
 
-def multisampled_targets(frame, size) -> dict:
+def multisampled_targets(frame, size, full: bool = False) -> dict:
     """The G-buffer's targets with MSAA_SAMPLES samples, under the per-pixel names with an `ms_` prefix
-    (the names accumulate_msaa.comp samples them by); owned by the frame."""
-    return {"ms_" + name[2:]: frame.own(frame.ctx.texture(size, 4, samples=MSAA_SAMPLES, dtype="f4"))
-            for name in GBUFFER_NAMES}
+    (the names accumulate_msaa.comp samples them by); owned by the frame. `full`: every target RGBA32F."""
+    def target(name):
+        components, dtype = (4, "f4") if full else _FORMATS[name]
+        return frame.own(frame.ctx.texture(size, components, samples=MSAA_SAMPLES, dtype=dtype))
+    return {"ms_" + name[2:]: target(name) for name in GBUFFER_NAMES}
+
+
+class EdgeList:
+    """The pixels of an anti-aliased frame whose multisamples do not all repeat the pixel's own fragment
+    (silhouettes and creases; glsl/render/msaa_classify.comp), as a storage buffer of pixel coordinates.
+    Everywhere else shading one sample is shading them all, so the per-light shading is accumulate.comp's,
+    and only these pixels get the per-sample correction (shade_edges): work in proportion to the edges."""
+
+    def __init__(self, frame, samples: dict):
+        self.buffer = frame.ctx.buffer(reserve=16 + 8 * frame.width * frame.height)
+        self.buffer.write(np.zeros(4, np.uint32).tobytes())
+        frame.dispatch("render/msaa_classify.comp", samplers=samples, buffers={0: self.buffer})
+        self.count = int(np.frombuffer(self.buffer.read(4), np.uint32)[0])
+        self.nbytes = self.buffer.size
+
+    def release(self) -> None:
+        self.buffer.release()
+
+
+def shade_edges(frame, light, tau: float, samplers: dict, images: dict, *, has_rgb: bool) -> None:
+    """After accumulate.comp added each pixel's own sample for `light`, replace that at the edge pixels by
+    the mean over their samples (glsl/shading/accumulate_msaa.comp)."""
+    edges = frame.msaa_edges
+    if not edges.count:
+        return
+    frame.dispatch("shading/accumulate_msaa.comp",
+                   {"u_has_rgb": int(has_rgb), "u_aa_depth_threshold": float(tau), "u_edge_count": edges.count,
+                    **light_uniforms(light)},
+                   samplers={**samplers, **frame.gbuffer_samples}, images=images, buffers={0: edges.buffer},
+                   defines=light_defines(light), groups=((edges.count + 63) // 64, 1, 1))
 
 
 def resolve_first_sample(frame, samples: dict, gbuffer: dict) -> None:

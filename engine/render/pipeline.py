@@ -15,6 +15,7 @@ from ..core import lightview, passes
 from ..gpu.context import GpuWorker, Job
 from ..gpu.frame import Frame
 from ..gpu.geometry import SceneGeometry
+from ..gpu.multisample import shade_edges
 from ..core.settings import RenderSettings
 from ..core.shading import light_defines, light_uniforms
 from ..core.snapshot import SceneSnapshot
@@ -135,15 +136,10 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             samplers = {"g_irradiance": irradiance, "u_visibility": visibility,
                         "u_visibility_rgb": rgb if rgb is not None else visibility}
             images = {0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum}
-            if frame.gbuffer_samples:   # anti-aliased: shade every sample with the pixel's visibility (§7)
-                frame.dispatch("shading/accumulate_msaa.comp",
-                               {"u_has_rgb": int(rgb is not None), **light_uniforms(light),
-                                "u_aa_depth_threshold": float(settings.aa_depth_threshold)},
-                               samplers={**samplers, **frame.gbuffer_samples}, images=images,
-                               defines=light_defines(light))
-            else:
-                frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
-                               samplers=samplers, images=images)
+            frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
+                           samplers=samplers, images=images)
+            if frame.msaa_edges is not None:    # anti-aliased: every sample of the edge pixels shaded (§7)
+                shade_edges(frame, light, settings.aa_depth_threshold, samplers, images, has_rgb=rgb is not None)
         frame.end_light()                   # per-light structures (an MSSM) go before the next light
         frame.progress.step(1.0, f"{light.name}: done")
 

@@ -1,30 +1,26 @@
-// accumulate.comp for an anti-aliased frame (Schwarz & Stamminger 2008, §7, single visibility sample): the
+// Per-sample shading at the edge pixels of an anti-aliased frame (Schwarz & Stamminger 2008, §7, single
+// visibility sample), run after accumulate.comp for each light over msaa_classify.comp's list: the
 // technique computed one visibility per pixel, on the per-pixel G-buffer (the pixel centre, or the first
-// multisample: engine/gpu/multisample.py); here every multisample is
-// shaded with its own position, normal and albedo, and the pixel gets the mean over its samples.
+// multisample: engine/gpu/multisample.py), and accumulate.comp added that sample's shading; here every
+// multisample is shaded with its own position, normal and albedo, and the pixel gets the mean over its
+// samples instead.
 // A sample's visibility is its pixel's when its camera depth is within u_aa_depth_threshold (τ, relative) of
 // the pixel's own; otherwise that of the pixel among itself and its 4-neighbours whose own depth is
 // closest to the sample's, as the paper's visibility interpolation picks it (§7, Fig. 9).
-// The Visibility pass sums stay per pixel (the pixel's own sample), as in accumulate.comp.
+// The Visibility pass sums stay accumulate.comp's, per pixel (the pixel's own sample).
 #include "common/pixel.glsl"
 #include "shading/irradiance.glsl"
+#include "render/msaa_samples.glsl"
 
-#ifndef MSAA_SAMPLES
-#define MSAA_SAMPLES 4
-#endif
-
-uniform sampler2D g_albedo;
 uniform sampler2D u_visibility;
 uniform sampler2D u_visibility_rgb;
 uniform int u_has_rgb;
-uniform sampler2DMS ms_position;
-uniform sampler2DMS ms_normal;
-uniform sampler2DMS ms_albedo;
 uniform float u_aa_depth_threshold;
+uniform uint u_edge_count;
+layout(std430, binding = 0) readonly buffer Edges { uint edge_count; uint pad[3]; ivec2 edge_pixels[]; };
 
 layout(rgba32f, binding = 0) uniform image2D u_combined;
 layout(rgba32f, binding = 1) uniform image2D u_unshadowed;
-layout(rg32f, binding = 2) uniform image2D u_visibility_sums;
 layout(rgba32f, binding = 3) uniform image2D u_irradiance;
 
 vec3 visibility_at(ivec2 q) {
@@ -47,36 +43,22 @@ vec3 closest_visibility(ivec2 px, float depth) {
     return pick.x < 0 ? vec3(1.0) : visibility_at(pick);
 }
 
-// A multisample that repeats the pixel's own fragment. The multisampled and single-sample rasterisers
-// interpolate the same attributes at the same pixel centre but may round differently (llvmpipe does, by
-// ~1e-7 relative): equal within float noise counts as the same.
-bool same_fragment(vec4 p, vec4 n, vec4 a, vec4 p0, vec4 n0, vec4 a0) {
-    float scale = 1e-5 * max(max(abs(p0.x), abs(p0.y)), max(abs(p0.z), n0.w));
-    return p0.w > 0.0 && all(lessThanEqual(abs(p.xyz - p0.xyz), vec3(scale)))
-        && abs(n.w - n0.w) <= 1e-5 * n0.w && dot(n.xyz, n0.xyz) >= 0.99999
-        && all(lessThanEqual(abs(a.rgb - a0.rgb), vec3(1e-5)));
-}
-
 void main() {
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-    if (!pixel_in_image(px)) return;
+    uint index = gl_WorkGroupID.x * 64u + gl_LocalInvocationIndex;
+    if (index >= u_edge_count) return;
+    ivec2 px = edge_pixels[index];
     bool own_lit = pixel_lit(px);
-    // The pixel's own sample, whose visibility the technique computed (the per-pixel G-buffer).
+    // The pixel's own sample, whose visibility the technique computed (the per-pixel G-buffer), and which
+    // accumulate.comp has just added.
     vec4 p0 = texelFetch(g_position, px, 0);
     vec4 n0 = texelFetch(g_normal, px, 0);
     vec4 a0 = texelFetch(g_albedo, px, 0);
+    vec4 e0 = own_lit ? texelFetch(g_irradiance, px, 0) : vec4(0.0);
     vec3 own_v = own_lit ? visibility_at(px) : vec3(1.0);
-    // Samples of the pixel's own fragment repeat its values: counted, shaded once (and 4·x/4 is x exactly,
-    // so an interior pixel gets the result of a frame without anti-aliasing).
+    vec3 own_radiance = a0.rgb * 0.318309886 * e0.rgb;
+    // Samples of the pixel's own fragment repeat its values: counted, shaded once.
     float repeats = 0.0;
-    vec3 first_radiance = vec3(0.0), first_e = vec3(0.0);
     vec3 combined = vec3(0.0), unshadowed = vec3(0.0), irradiance = vec3(0.0);
-    if (own_lit) {
-        vec4 e = texelFetch(g_irradiance, px, 0);
-        first_e = e.rgb;
-        first_radiance = a0.rgb * 0.318309886 * e.rgb;
-        imageStore(u_visibility_sums, px, imageLoad(u_visibility_sums, px) + vec4(e.a * own_v.r, e.a, 0.0, 0.0));
-    }
     for (int s = 0; s < MSAA_SAMPLES; ++s) {
         vec4 p = texelFetch(ms_position, px, s);
         if (p.w <= 0.0) continue;                   // background: no light
@@ -92,11 +74,10 @@ void main() {
         unshadowed += radiance;
         irradiance += e.rgb;
     }
+    // The mean over the samples, in place of the own sample's value.
     const float share = 1.0 / float(MSAA_SAMPLES);
-    combined = (repeats * (first_radiance * own_v) + combined) * share;
-    unshadowed = (repeats * first_radiance + unshadowed) * share;
-    irradiance = (repeats * first_e + irradiance) * share;
-    imageStore(u_combined, px, imageLoad(u_combined, px) + vec4(combined, 0.0));
-    imageStore(u_unshadowed, px, imageLoad(u_unshadowed, px) + vec4(unshadowed, 0.0));
-    imageStore(u_irradiance, px, imageLoad(u_irradiance, px) + vec4(irradiance, 0.0));
+    float rest = repeats * share - 1.0;
+    imageStore(u_combined, px, imageLoad(u_combined, px) + vec4(rest * (own_radiance * own_v) + combined * share, 0.0));
+    imageStore(u_unshadowed, px, imageLoad(u_unshadowed, px) + vec4(rest * own_radiance + unshadowed * share, 0.0));
+    imageStore(u_irradiance, px, imageLoad(u_irradiance, px) + vec4(rest * e0.rgb + irradiance * share, 0.0));
 }
