@@ -202,6 +202,7 @@ class Frame:
         if aa:
             with self.timings.stage("gbuffer_resolve"):
                 self.msaa_edges = self.own(EdgeList(self, self.gbuffer_samples))
+            self.count(msaa_edge_pixels=self.msaa_edges.count)
         return g
 
     def _draw_gbuffer(self, targets: dict, samples: int, stage: str = "gbuffer") -> None:

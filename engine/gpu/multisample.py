@@ -17,15 +17,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.matrices import mat_uniform
 from ..core.shading import light_defines, light_uniforms
 
 GBUFFER_NAMES = ("g_position", "g_normal", "g_geometric", "g_albedo")
 MSAA_SAMPLES = 4
-# Per-sample formats: (components, dtype). Shading reads position, normal + depth and albedo as float32; the
-# geometric normal only the per-pixel G-buffer needs (biases), so with a pixel-centre visibility sample its
-# multisampled target is a one-byte placeholder that keeps the shader's output locations (a quarter less to
-# write); the first-sample resolve copies it, so there it stays RGBA32F.
-_FORMATS = {"g_position": (4, "f4"), "g_normal": (4, "f4"), "g_geometric": (1, "f1"), "g_albedo": (4, "f4")}
+# Per-sample formats: (components, dtype). Shading reads the normal + camera depth and the albedo as float32.
+# Position it rebuilds from the depth (attributes are at the pixel centre, so a sample lies on the centre's
+# camera ray), and the geometric normal only the per-pixel G-buffer needs (biases): with a pixel-centre
+# visibility sample, both are one-byte placeholders that keep the shader's output locations (about half the
+# bytes to write); the first-sample resolve copies every target, so there they stay RGBA32F.
+_FORMATS = {"g_position": (1, "f1"), "g_normal": (4, "f4"), "g_geometric": (1, "f1"), "g_albedo": (4, "f4")}
 # The targets and a 32-bit depth buffer, per sample (the larger, first-sample layout), and the edge list.
 MSAA_BYTES_PER_PIXEL = MSAA_SAMPLES * (len(GBUFFER_NAMES) * 16 + 4) + 8
 
@@ -46,6 +48,12 @@ class EdgeList:
     and only these pixels get the per-sample correction (shade_edges): work in proportion to the edges."""
 
     def __init__(self, frame, samples: dict):
+        cam = frame.snap.camera
+        inv_view = np.linalg.inv(cam.view)
+        # glsl/render/msaa_samples.glsl's sample_position: the camera rays through the pixel centres
+        self.uniforms = {"u_msaa_inv_view_proj": mat_uniform(np.linalg.inv(cam.projection @ cam.view)),
+                         "u_msaa_camera_position": tuple(inv_view[:3, 3]),
+                         "u_msaa_camera_forward": tuple(-inv_view[:3, 2])}
         self.buffer = frame.ctx.buffer(reserve=16 + 8 * frame.width * frame.height)
         self.buffer.write(np.zeros(4, np.uint32).tobytes())
         frame.dispatch("render/msaa_classify.comp", samplers=samples, buffers={0: self.buffer})
@@ -64,7 +72,7 @@ def shade_edges(frame, light, tau: float, samplers: dict, images: dict, *, has_r
         return
     frame.dispatch("shading/accumulate_msaa.comp",
                    {"u_has_rgb": int(has_rgb), "u_aa_depth_threshold": float(tau), "u_edge_count": edges.count,
-                    **light_uniforms(light)},
+                    **edges.uniforms, **light_uniforms(light)},
                    samplers={**samplers, **frame.gbuffer_samples}, images=images, buffers={0: edges.buffer},
                    defines=light_defines(light), groups=((edges.count + 63) // 64, 1, 1))
 

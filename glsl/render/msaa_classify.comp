@@ -9,16 +9,14 @@ layout(std430, binding = 0) buffer Edges { uint edge_count; uint pad[3]; ivec2 e
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
-    vec4 p0 = texelFetch(g_position, px, 0);
     vec4 n0 = texelFetch(g_normal, px, 0);
     vec4 a0 = texelFetch(g_albedo, px, 0);
+    bool covered = texelFetch(g_position, px, 0).w > 0.0;
     bool uniform_pixel = true;
     for (int s = 0; s < MSAA_SAMPLES; ++s) {
-        vec4 p = texelFetch(ms_position, px, s);
-        bool same = p0.w > 0.0 ? same_fragment(p, texelFetch(ms_normal, px, s), texelFetch(ms_albedo, px, s),
-                                               p0, n0, a0)
-                               : p.w <= 0.0;
-        uniform_pixel = uniform_pixel && same;
+        vec4 n = texelFetch(ms_normal, px, s);
+        uniform_pixel = uniform_pixel && (covered ? same_fragment(n, texelFetch(ms_albedo, px, s), n0, a0)
+                                                  : n.w <= 0.0);
     }
     if (!uniform_pixel) edge_pixels[atomicAdd(edge_count, 1u)] = px;
 }

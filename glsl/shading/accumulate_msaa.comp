@@ -50,7 +50,6 @@ void main() {
     bool own_lit = pixel_lit(px);
     // The pixel's own sample, whose visibility the technique computed (the per-pixel G-buffer), and which
     // accumulate.comp has just added.
-    vec4 p0 = texelFetch(g_position, px, 0);
     vec4 n0 = texelFetch(g_normal, px, 0);
     vec4 a0 = texelFetch(g_albedo, px, 0);
     vec4 e0 = own_lit ? texelFetch(g_irradiance, px, 0) : vec4(0.0);
@@ -60,12 +59,11 @@ void main() {
     float repeats = 0.0;
     vec3 combined = vec3(0.0), unshadowed = vec3(0.0), irradiance = vec3(0.0);
     for (int s = 0; s < MSAA_SAMPLES; ++s) {
-        vec4 p = texelFetch(ms_position, px, s);
-        if (p.w <= 0.0) continue;                   // background: no light
         vec4 n = texelFetch(ms_normal, px, s);
+        if (n.w <= 0.0) continue;                   // background: no light
         vec4 a = texelFetch(ms_albedo, px, s);
-        if (same_fragment(p, n, a, p0, n0, a0)) { repeats += 1.0; continue; }
-        vec4 e = receiver_irradiance(p.xyz, n.xyz);
+        if (same_fragment(n, a, n0, a0)) { repeats += 1.0; continue; }
+        vec4 e = receiver_irradiance(sample_position(px, u_image_size, n.w), n.xyz);
         if (e.a <= 0.0) continue;
         bool same = own_lit && abs(n.w - n0.w) <= u_aa_depth_threshold * n0.w;
         vec3 v = same ? own_v : closest_visibility(px, n.w);
