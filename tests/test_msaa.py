@@ -65,6 +65,17 @@ def test_antialiasing_changes_only_silhouette_pixels_and_no_measurement_pass(nam
     assert not (changed & ~edges).any()
 
 
+def test_the_depth_threshold_picks_neighbour_visibility_at_silhouettes_only(silhouette):
+    """τ = 1 gives every sample its pixel's visibility (no interpolation): that changes Combined somewhere, and
+    only at silhouettes, where a sample of another surface takes the visibility of the closest-depth neighbour."""
+    snap, _ = silhouette
+    tau = pipeline.render(snap, RenderSettings(technique="PCSS"))
+    own = pipeline.render(snap, RenderSettings(technique="PCSS", aa_depth_threshold=1.0))
+    edges = study.edge_pixels(tau.passes["Depth"][..., 0], pipeline.BACKGROUND_DEPTH)
+    changed = np.any(tau.passes["Combined"] != own.passes["Combined"], axis=-1)
+    assert changed.any() and not (changed & ~edges).any()
+
+
 def test_edge_pixels_mark_coverage_steps_and_depth_creases_not_a_slanted_plane():
     h, w = 16, 16
     yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)

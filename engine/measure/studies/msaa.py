@@ -4,8 +4,9 @@ its time overhead and its error at silhouettes against a box-filtered Cycles ref
     python -m penumbra bench --study msaa --out DIR -- [--scenes silhouette suzanne] [--size 128]
         [--samples 256] [--techniques HARD PCSS …] [--repeats 3]
 
-Per scene and technique, three frames: anti-aliasing off, on (visibility at pixel centres, the default) and
-on with the paper's first-multisample visibility. Each is rendered with every surface white, as Cycles'
+Per scene and technique, four frames: anti-aliasing off, on (visibility at pixel centres, the default), on
+with the paper's first-multisample visibility, and on with τ = 1 (every sample takes its pixel's visibility:
+no interpolation from the neighbours, the left of the paper's Fig. 9). Each is rendered with every surface white, as Cycles'
 reference is, so Combined is directly comparable with Cycles' shadowed render:
   frame_ms      whole frame, fastest of `--repeats` (interleaved, so load drifts hit all three alike)
   overhead      frame_ms / frame_ms(off) − 1 (paper: < 9 % on a GeForce 8800; MSAA alone ≈ 5 %)
@@ -14,6 +15,7 @@ reference is, so Combined is directly comparable with Cycles' shadowed render:
                 Cycles' box-filtered (1 px) shadowed render, over the 99th percentile of L_ref(unshadowed)
   edge_error_vis  the same for the visibility ratio L(Combined)/L(Unshadowed) against Cycles' box-filtered
                 V_ref, over silhouette pixels in its mask (an edge between two surfaces, not the background)
+  per-sample pixels  pixels whose samples are not all their own fragment's (the only ones shaded per sample)
   mae_shadow    of the Visibility pass against Cycles' point-filtered reference (what every other measurement
                 of this project uses): equal off and on by construction, and what the first-sample choice
                 costs there
@@ -36,7 +38,8 @@ SCENES = ("silhouette", "suzanne")
 # (label, setting changes): the frames each technique renders
 MODES = (("off", {"antialiasing": False}),
          ("on", {"antialiasing": True, "aa_visibility_sample": "CENTER"}),
-         ("on_first", {"antialiasing": True, "aa_visibility_sample": "FIRST"}))
+         ("on_first", {"antialiasing": True, "aa_visibility_sample": "FIRST"}),
+         ("on_tau1", {"antialiasing": True, "aa_depth_threshold": 1.0}))
 EDGE_DEPTH_STEP = 0.05      # relative camera-depth step that makes a silhouette in the Depth pass
 PAPER_OVERHEAD = 0.09
 
@@ -128,10 +131,11 @@ def run(out: Path, scene_names=SCENES, size: int = 128, samples: int = 256, tech
                     "overhead": r.total_ms / max(base_ms, 1e-9) - 1.0,
                     "msaa_ms": {k: r.timings.get(k, 0.0) for k in ("gbuffer_msaa", "gbuffer_resolve", "gbuffer",
                                                                    "accumulate")},
+                    "msaa_edge_pixels": r.stats.get("msaa_edge_pixels", 0),
                     "mae_shadow": m["mae_shadow"], **edge_errors(r.passes, box, edges)})
-            on = results["rows"][-2]
+            on = next(r for r in results["rows"][-len(MODES):] if r["mode"] == "on")
             log(f"[{time.time() - t0:6.0f}s] {name} {tech}: overhead {on['overhead'] * 100:+.1f} %, edge error "
-                f"{results['rows'][-3]['edge_error']:.4f} → {on['edge_error']:.4f}")
+                f"{results['rows'][-len(MODES)]['edge_error']:.4f} → {on['edge_error']:.4f}")
     results["summary"] = summary(results)
     results["seconds"] = time.time() - t0
     out.mkdir(parents=True, exist_ok=True)
@@ -162,13 +166,14 @@ def markdown(results) -> str:
     lines = [f"# MSAA study (Schwarz & Stamminger 2008, §7) — {results['size']}² images, Cycles "
              f"{results['samples']} spp (box filter 1 px for the edge errors, point-like for mae_shadow), fastest "
              f"of {results['repeats']}", "",
-             "| scene | technique | AA | frame ms | overhead | MSAA G-buffer ms | accumulate ms | edge pixels | "
-             "edge error | edge error V | mae_shadow (point) |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| scene | technique | AA | frame ms | overhead | MSAA G-buffer ms | accumulate ms | per-sample pixels | "
+             "edge pixels | edge error | edge error V | mae_shadow (point) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results["rows"]:
         ms = r["msaa_ms"]
         lines.append(f"| {r['scene']} | {r['technique']} | {r['mode']} | {r['frame_ms']:.1f} | "
                      f"{r['overhead'] * 100:+.1f} % | {ms['gbuffer_msaa'] + ms['gbuffer_resolve']:.1f} | "
-                     f"{ms['accumulate']:.1f} | {r['edge_pixels']} | {r['edge_error']:.4f} | "
+                     f"{ms['accumulate']:.1f} | {r['msaa_edge_pixels']} | {r['edge_pixels']} | {r['edge_error']:.4f} | "
                      f"{r['edge_error_vis']:.4f} | {r['mae_shadow']:.4f} |")
     lines += ["", "## Per technique (mean over scenes, default anti-aliasing against off)", "",
               "| technique | overhead | edge error on/off | lower on every scene | overhead < 9 % (paper) |",
