@@ -1,7 +1,9 @@
 """The multisampled camera G-buffer of the anti-aliased frame (Schwarz & Stamminger 2008, §7, "single
-visibility sample"): the scene is drawn into MSAA_SAMPLES-sample targets that only the shading pass
-(glsl/shading/accumulate_msaa.comp) reads: it shades every sample and averages. Visibility stays once per
-pixel, computed by the technique on the per-pixel G-buffer, which is either
+visibility sample"): the scene is drawn into MSAA_SAMPLES-sample targets that only the shading reads. Once
+per frame the pixels whose samples are not all their own fragment's are listed (EdgeList); per light,
+accumulate.comp shades every pixel's own sample as without anti-aliasing, and at the listed pixels
+(shade_edges) every sample is shaded and the mean replaces it. Visibility stays once per pixel, computed by
+the technique on the per-pixel G-buffer, which is either
 
   CENTER  drawn as without anti-aliasing (one more raster of the scene): the techniques' input and the Depth
           and Visibility passes equal a frame without anti-aliasing, pixel centres as in Cycles' point-filtered
@@ -66,15 +68,16 @@ class EdgeList:
 
 def shade_edges(frame, light, tau: float, samplers: dict, images: dict, *, has_rgb: bool) -> None:
     """After accumulate.comp added each pixel's own sample for `light`, replace that at the edge pixels by
-    the mean over their samples (glsl/shading/accumulate_msaa.comp)."""
+    the mean over their samples (glsl/shading/accumulate_msaa.comp). Timed as the stage `accumulate_msaa`."""
     edges = frame.msaa_edges
     if not edges.count:
         return
-    frame.dispatch("shading/accumulate_msaa.comp",
-                   {"u_has_rgb": int(has_rgb), "u_aa_depth_threshold": float(tau), "u_edge_count": edges.count,
-                    **edges.uniforms, **light_uniforms(light)},
-                   samplers={**samplers, **frame.gbuffer_samples}, images=images, buffers={0: edges.buffer},
-                   defines=light_defines(light), groups=((edges.count + 63) // 64, 1, 1))
+    with frame.timings.stage("accumulate_msaa"):
+        frame.dispatch("shading/accumulate_msaa.comp",
+                       {"u_has_rgb": int(has_rgb), "u_aa_depth_threshold": float(tau),
+                        "u_edge_count": edges.count, **edges.uniforms, **light_uniforms(light)},
+                       samplers={**samplers, **frame.gbuffer_samples}, images=images, buffers={0: edges.buffer},
+                       defines=light_defines(light), groups=((edges.count + 63) // 64, 1, 1))
 
 
 def resolve_first_sample(frame, samples: dict, gbuffer: dict) -> None:
