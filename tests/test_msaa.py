@@ -95,3 +95,21 @@ def test_the_viewports_first_frame_goes_without_antialiasing():
     from penumbra.engine.render.viewport import coarse_settings
     assert RenderSettings().antialiasing
     assert not coarse_settings(RenderSettings(), 256).antialiasing
+
+
+def test_the_viewports_refined_frame_is_antialiased_like_the_final_render():
+    from penumbra.engine.blender.viewport_sync import BlenderViewport
+    sc = study._scene("silhouette", SIZE)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    snap = extract(depsgraph, sc)
+    final = pipeline.render(snap, RenderSettings(technique="PCSS"))
+    session = BlenderViewport()
+    try:
+        session.sync(depsgraph)
+        session.request(snap.camera, RenderSettings(technique="PCSS"))
+        frame = session.wait()
+        assert not frame.coarse and "gbuffer_msaa" in frame.timings
+        # object-space buffers drawn with model matrices vs world-space vertices: float32 rounding only
+        assert np.mean(np.abs(frame.passes["Combined"] - final.passes["Combined"])) < 1e-3
+    finally:
+        session.free()
