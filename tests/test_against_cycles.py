@@ -49,13 +49,15 @@ def test_reference_technique_matches_cycles_within_its_noise(name):
     assert m["mae_shadow"] <= floor["mae_shadow"] + 0.005
 
 
-def test_unshadowed_light_matches_cycles_on_a_builtin_scene():
+@pytest.mark.parametrize("antialiasing", [False, True])
+def test_unshadowed_light_matches_cycles_on_a_builtin_scene(antialiasing):
     """Our unoccluded light (Irradiance/π) against Cycles' unshadowed render with a white Lambertian
-    override: within 2 % mean relative error over lit pixels."""
+    override: within 2 % mean relative error over lit pixels. Without anti-aliasing each pixel is its
+    centre, as Cycles' point-like filter; with it, the mean over the pixel's samples, as Cycles' box filter."""
     from penumbra.engine.measure.compare import unshadowed_error
     sc, snap = _scene("suzanne", (128, 128))
-    ref = reference.cycles_visibility(sc, samples=256)
-    r = pipeline.render(snap, RenderSettings(technique="HARD", debug_passes=True))
+    ref = reference.cycles_visibility(sc, samples=256, filter_type="BOX" if antialiasing else "GAUSSIAN")
+    r = pipeline.render(snap, RenderSettings(technique="HARD", debug_passes=True, antialiasing=antialiasing))
     err = unshadowed_error(r.passes["Irradiance"] / np.pi, ref.unshadowed, ref.mask)
     print("unshadowed relative error", err)
     assert err < 0.02

@@ -37,6 +37,11 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
             box = layout.column(heading=technique.label)
             for name in names:
                 box.prop(props, name)
+        layout.prop(props, "antialiasing")
+        aa = layout.column(align=True)
+        aa.active = props.antialiasing
+        aa.prop(props, "aa_depth_threshold")
+        aa.prop(props, "aa_visibility_sample")
         layout.prop(props, "debug_passes")
         layout.operator("penumbra.export_exr", icon="EXPORT")
 

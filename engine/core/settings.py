@@ -22,6 +22,18 @@ SHARED = (
            min=0.0, max=100.0),
     Option("seed", 0, "Seed", "Seed of the techniques' sample patterns", min=0),
     Option("debug_passes", False, "Debug Passes", "Also write the technique's debug passes"),
+    Option("antialiasing", True, "Anti-aliasing",
+           "4× multisampled G-buffer with one visibility per pixel (Schwarz & Stamminger 2008, §7): shading per "
+           "sample, averaged, for Combined, Unshadowed and Irradiance"),
+    Option("aa_depth_threshold", 0.01, "AA Depth Threshold",
+           "Relative camera-depth difference (τ) under which a sample shares its pixel's visibility; samples "
+           "beyond it take the 4-neighbour of closest depth", min=0.0, max=1.0),
+    Option("aa_visibility_sample", "CENTER", "AA Visibility Sample",
+           "Where each pixel's one visibility is computed when anti-aliasing", items=(
+               ("CENTER", "Pixel Centre", "A second, single-sample G-buffer at pixel centres: the techniques' "
+                "input and the Depth and Visibility passes are those of a frame without anti-aliasing"),
+               ("FIRST", "First Sample", "The first multisample (the paper's choice; GL puts it off the pixel "
+                "centre, which shifts silhouettes in the Depth and Visibility passes by up to 0.4 px)"))),
 )
 _SHARED = {o.name: o for o in SHARED}
 
@@ -42,6 +54,9 @@ class RenderSettings:
     seed: int = _SHARED["seed"].default
     # passes beyond Combined/Depth/Visibility/Unshadowed
     debug_passes: bool = _SHARED["debug_passes"].default
+    antialiasing: bool = _SHARED["antialiasing"].default
+    aa_depth_threshold: float = _SHARED["aa_depth_threshold"].default
+    aa_visibility_sample: str = _SHARED["aa_visibility_sample"].default
     # techniques record per-light statistics in FrameResult.stats["per_light"] (may cost a readback)
     collect_stats: bool = False
     # Settings a technique declares itself (Technique.options), by option name; unset ones take defaults.

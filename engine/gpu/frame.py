@@ -12,6 +12,8 @@ from ..core.shader_constants import NO_OCCLUDER
 from ..core.snapshot import SceneSnapshot
 from .geometry import SceneGeometry, SoupGeometry
 from .pool import pool_of
+from .multisample import (GBUFFER_NAMES, MSAA_BYTES_PER_PIXEL, MSAA_SAMPLES, EdgeList, multisampled_targets,
+                          resolve_first_sample)
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
 from .state import gl_state
 
@@ -77,14 +79,15 @@ def available_host_bytes() -> float | None:
     return None
 
 
-def check_image_size(ctx, width: int, height: int) -> None:
-    """Refuse (ValueError) a frame the context cannot hold, before anything is allocated."""
+def check_image_size(ctx, width: int, height: int, extra_gpu_bytes_per_pixel: int = 0) -> None:
+    """Refuse (ValueError) a frame the context cannot hold, before anything is allocated;
+    `extra_gpu_bytes_per_pixel`: GPU memory beyond GPU_BYTES_PER_PIXEL (the multisampled G-buffer)."""
     max_size = int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
     viewport = ctx.info.get("GL_MAX_VIEWPORT_DIMS")
     if viewport:
         max_size = min(max_size, *[int(v) for v in viewport])
     software = "llvmpipe" in str(ctx.info.get("GL_RENDERER", "")).lower()
-    per_pixel = HOST_BYTES_PER_PIXEL + (GPU_BYTES_PER_PIXEL if software else 0)
+    per_pixel = HOST_BYTES_PER_PIXEL + (GPU_BYTES_PER_PIXEL + extra_gpu_bytes_per_pixel if software else 0)
     problem = image_size_problem(width, height, max_size, available_host_bytes(), per_pixel)
     if problem:
         raise ValueError(problem)
@@ -130,7 +133,8 @@ class Frame:
         self.snap = snap
         self.settings = settings
         self.width, self.height = snap.camera.width, snap.camera.height
-        check_image_size(ctx, self.width, self.height)
+        check_image_size(ctx, self.width, self.height,
+                         MSAA_BYTES_PER_PIXEL if getattr(settings, "antialiasing", False) else 0)
         self.timings = Timings(ctx, sync=stage_times)     # GPU waits only when per-stage times are asked
         self._owned: list = []
         self.pool = pool_of(worker)
@@ -225,12 +229,40 @@ class Frame:
 
     # ---- camera G-buffer -------------------------------------------------------------------------------
     def _render_gbuffer(self):
-        ctx, cam = self.ctx, self.snap.camera
         size = (self.width, self.height)
-        g = {name: self.texture(size, 4) for name in ("g_position", "g_normal", "g_geometric", "g_albedo")}
-        depth = self.depth_texture(size)
-        fbo = self.framebuffer(list(g.values()), depth)
-        with self.timings.stage("gbuffer"):
+        g = {name: self.texture(size, 4) for name in GBUFFER_NAMES}
+        # Anti-aliasing (Schwarz & Stamminger 2008, §7) adds a multisampled G-buffer that only the shading
+        # reads; the per-pixel one every technique reads is either drawn as without it (pixel centres) or
+        # the multisamples' first (the paper's choice: see engine/gpu/multisample.py).
+        self.gbuffer_samples = self.msaa_edges = None
+        aa = getattr(self.settings, "antialiasing", False)
+        first = aa and self.settings.aa_visibility_sample == "FIRST"
+        if aa:
+            self.gbuffer_samples = multisampled_targets(self, size, full=first)
+            self._draw_gbuffer(self.gbuffer_samples, MSAA_SAMPLES, "gbuffer_msaa")
+        self.gbuffer = g                # dispatch binds it
+        if first:
+            with self.timings.stage("gbuffer_resolve"):
+                resolve_first_sample(self, self.gbuffer_samples, g)
+        else:
+            self._draw_gbuffer(g, 0)
+        if aa:
+            with self.timings.stage("gbuffer_resolve"):
+                self.msaa_edges = self.own(EdgeList(self, self.gbuffer_samples))
+            self.count(msaa_edge_pixels=self.msaa_edges.count)
+        return g
+
+    def _draw_gbuffer(self, targets: dict, samples: int, stage: str = "gbuffer") -> None:
+        """Draw the receivers from the camera into the G-buffer `targets` (with a depth buffer of `samples`),
+        timed as `stage`."""
+        ctx, cam = self.ctx, self.snap.camera
+        if samples:
+            depth = self.own(ctx.depth_texture((self.width, self.height), samples=samples))
+            fbo = self.own(ctx.framebuffer(color_attachments=list(targets.values()), depth_attachment=depth))
+        else:                           # the per-pixel G-buffer comes from the pool, like every target
+            depth = self.depth_texture((self.width, self.height))
+            fbo = self.framebuffer(list(targets.values()), depth)
+        with self.timings.stage(stage):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             ctx.enable(ctx.DEPTH_TEST)
@@ -243,7 +275,6 @@ class Frame:
                 "u_camera_forward": tuple(-inv_view[:3, 2]),
             })
             self.geometry.render(ctx, prog, "receiver")
-        return g
 
     def read(self, tex, components: int | None = None) -> np.ndarray:
         """Texture → (H, W, C) float32, row 0 at the bottom (GL and Blender agree on that)."""
@@ -300,11 +331,11 @@ class Frame:
 
     # ---- compute passes --------------------------------------------------------------------------------
     def dispatch(self, compute: str, uniforms: dict | None = None, samplers: dict | None = None,
-                 images: dict | None = None, defines: dict | None = None, size=None,
+                 images: dict | None = None, defines: dict | None = None, size=None, groups=None,
                  buffers: dict | None = None) -> None:
-        """Run glsl/`compute` once per image pixel. `samplers`: uniform name → texture; `images`: binding →
-        texture (bound read-write); `buffers`: binding → storage buffer. The G-buffer is always bound under
-        its own names."""
+        """Run glsl/`compute` once per image pixel (or as `groups` work groups of 8×8). `samplers`: uniform
+        name → texture; `images`: binding → texture (bound read-write); `buffers`: binding → storage buffer.
+        The G-buffer is always bound under its own names."""
         prog = program(self.worker, compute=compute, defines=defines)
         w, h = size or (self.width, self.height)
         bind_samplers(prog, {**self.gbuffer, **(samplers or {})})
@@ -313,7 +344,7 @@ class Frame:
         for binding, buf in (buffers or {}).items():
             buf.bind_to_storage_buffer(binding)
         set_uniforms(prog, {"u_image_size": (w, h), **(uniforms or {})})
-        prog.run((w + 7) // 8, (h + 7) // 8, 1)
+        prog.run(*(groups or ((w + 7) // 8, (h + 7) // 8, 1)))
         self.ctx.memory_barrier()
 
 

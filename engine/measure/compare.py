@@ -136,6 +136,9 @@ def compare_steps(scene, settings: RenderSettings, *, samples: int = 256, with_n
             start = time.perf_counter()
             result = pipeline.render(snap, settings)
             ours_ms.append((time.perf_counter() - start) * 1000.0)
+        # The shading check is against Cycles' point-filtered render: an anti-aliased frame's Irradiance is the
+        # mean over each pixel, so that check takes the frame without anti-aliasing (Visibility is the same).
+        point = pipeline.render(snap, settings.with_(antialiasing=False)) if settings.antialiasing else result
         w, h = snap.camera.width, snap.camera.height
         share = 0.45 if with_noise_floor else 0.85
         yield 0.05, f"Cycles reference, {samples} spp (shadowed + unshadowed)"
@@ -147,16 +150,17 @@ def compare_steps(scene, settings: RenderSettings, *, samples: int = 256, with_n
         yield 0.05 + (2 if with_noise_floor else 1) * share, "metrics and files"
     finally:
         st.restore()
-    cmp = measure(snap, settings, result, ref, floor, float(np.median(ours_ms)), samples)
+    cmp = measure(snap, settings, result, ref, floor, float(np.median(ours_ms)), samples, shading=point)
     cmp.preview = caps
     if out_dir:
         cmp.files = write_outputs(out_dir, cmp, scene)
     return cmp
 
 
-def measure(snap, settings, result, ref, floor, ours_ms: float, samples: int) -> Comparison:
+def measure(snap, settings, result, ref, floor, ours_ms: float, samples: int, shading=None) -> Comparison:
     """The numbers of one comparison; metrics that have no pixels to be taken over are NaN (null in JSON) and
-    `undefined` says why."""
+    `undefined` says why. `shading`: the frame whose Irradiance is checked against Cycles' unshadowed render
+    (default `result`)."""
     v = result.passes["Visibility"][..., 0]
     m = metrics.compare(v, ref.visibility, ref.mask)
     undefined = ""
@@ -176,7 +180,7 @@ def measure(snap, settings, result, ref, floor, ours_ms: float, samples: int) ->
     else:
         one, timed_by = ref.seconds / 2.0, "half of the cached pair"
     return Comparison(snap.name, settings.technique, m, floor, ours_ms, one, ref.seconds, timed_by, samples,
-                      unshadowed_error(result.passes["Irradiance"] / np.pi, ref.unshadowed, ref.mask),
+                      unshadowed_error((shading or result).passes["Irradiance"] / np.pi, ref.unshadowed, ref.mask),
                       resolution=(snap.camera.width, snap.camera.height), warnings=list(result.warnings),
                       undefined=undefined, passes=result.passes, ref=ref)
 

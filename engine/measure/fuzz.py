@@ -410,7 +410,10 @@ def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = 
     rows = []
     saved = False
     for technique in techniques:
-        settings = RenderSettings().with_(**{**(overrides or {}), "technique": technique, "debug_passes": True})
+        # Cycles' reference is point-filtered (pixel centres): so is the render, anti-aliasing off unless asked
+        # (it leaves Visibility as it is, and averages the Irradiance checked against Cycles over the pixel).
+        settings = RenderSettings(antialiasing=False).with_(
+            **{**(overrides or {}), "technique": technique, "debug_passes": True})
         b = bound(technique, floor)
         try:
             t0 = time.perf_counter()

@@ -15,6 +15,7 @@ from ..core import lightview, passes
 from ..gpu.context import GpuWorker, Job
 from ..gpu.frame import Frame
 from ..gpu.geometry import SceneGeometry
+from ..gpu.multisample import shade_edges
 from ..core.settings import RenderSettings
 from ..core.shading import light_defines, light_uniforms
 from ..core.snapshot import SceneSnapshot
@@ -135,10 +136,13 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, lit_xyz,
                                        irradiance, object_bounds, caster_objects, visibility, stats, debug)
         with t.stage("accumulate"):
+            samplers = {"g_irradiance": irradiance, "u_visibility": visibility,
+                        "u_visibility_rgb": rgb if rgb is not None else visibility}
+            images = {0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum}
             frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
-                           samplers={"g_irradiance": irradiance, "u_visibility": visibility,
-                                     "u_visibility_rgb": rgb if rgb is not None else visibility},
-                           images={0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum})
+                           samplers=samplers, images=images)
+            if frame.msaa_edges is not None:    # anti-aliased: every sample of the edge pixels shaded (§7)
+                shade_edges(frame, light, settings.aa_depth_threshold, samplers, images, has_rgb=rgb is not None)
         frame.end_light()                   # per-light structures (an MSSM) go before the next light
         frame.progress.step(1.0, f"{light.name}: done")
 

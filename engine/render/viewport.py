@@ -113,10 +113,10 @@ class ViewportGeometry(SceneGeometry):
 # ---------------------------------------------------------------------------------------------------------
 
 def coarse_settings(settings: RenderSettings, map_size: int) -> RenderSettings:
-    """The quick first frame after a change: a small map and the technique's own cheap mode
-    (Technique.coarse)."""
+    """The quick first frame after a change: a small map, no anti-aliasing (the refined frame has it) and
+    the technique's own cheap mode (Technique.coarse)."""
     from ..techniques import get
-    changes = {"shadow_map_size": min(map_size, settings.shadow_map_size)}
+    changes = {"shadow_map_size": min(map_size, settings.shadow_map_size), "antialiasing": False}
     for name, value in get(settings.technique).coarse.items():
         current = getattr(settings, name) if name in settings.field_names() else settings.option(name)
         numeric = isinstance(value, (int, float)) and not isinstance(value, bool)

@@ -262,3 +262,12 @@ vec3 light_irradiance(vec3 x, vec3 n) {
     if (spot <= 0.0) return vec3(0.0);
     return u_radiance * spot * (0.5 * clipped_polygon_sum(center, u, v, 32, n));
 }
+
+// What the shading passes store for a covered receiver: irradiance clamped at zero, NaN/Inf dropped, and its
+// scalar weight (the channel mean) in alpha. irradiance.comp (per pixel) and accumulate_msaa.comp (per
+// sample) share it, so a sample that is its pixel's first gets bit-identical values.
+vec4 receiver_irradiance(vec3 x, vec3 n) {
+    vec3 e = max(light_irradiance(x, n), vec3(0.0));
+    if (any(isnan(e)) || any(isinf(e))) e = vec3(0.0);
+    return vec4(e, dot(e, vec3(1.0 / 3.0)));
+}

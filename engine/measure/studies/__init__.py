@@ -9,6 +9,7 @@ STUDIES = {
     "ssm": "Atty et al. 2006, soft shadow maps: map size, precision, timing (§4.2, §5.2.3)",
     "spsm": "Lecocq et al. 2014, sub-pixel shadow maps vs HARD: pixel match, time, look-up shares, quantiser",
     "pvsm": "Shen et al. 2011, predicted virtual soft shadow maps: closed form, anti-aliasing, stages, ρ, tiles",
+    "msaa": "Schwarz & Stamminger 2008 §7, one visibility sample per pixel: MSAA overhead and edge error per technique",
 }
 
 
