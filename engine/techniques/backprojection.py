@@ -289,6 +289,12 @@ class Backprojection(Technique):
             with frame.timings.stage("bp_loq"):
                 samplers["u_loq"] = self._loq_map(frame, uniforms, samplers, images, defines, size)
             defines["LOQ"] = LOQ_BLEND
+            if s.collect_stats:         # the smoothed level against the pixel's own (the guard, §4.2)
+                loq = frame.read(samplers["u_loq"])
+                bp = loq[..., 2] >= 0.0
+                drop = (loq[..., 2] - loq[..., 0])[bp]
+                lc.stats.update({"level_drop_max": float(drop.max()) if bp.any() else 0.0,
+                                 "level_change_max": float(np.abs(drop).max()) if bp.any() else 0.0})
         with frame.timings.stage("bp_gather"):
             frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
                            defines=defines)
