@@ -13,8 +13,12 @@ CLASS_UMBRA = 1             # proven in umbra
 CLASS_BACKPROJECTED = 2     # micro-occluders were backprojected
 
 # BACKPROJECTION's search refinement (the REFINE define) and micro-occluder (PRIMITIVE define).
-REFINE_NONE, REFINE_HSM, REFINE_MSSM = 0, 1, 2
-PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD = 0, 1
+REFINE_NONE, REFINE_HSM, REFINE_MSSM, REFINE_YSM = 0, 1, 2, 3
+PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT = 0, 1, 2
+# BACKPROJECTION's budget map b_mo(x, y) (Schwarz & Stamminger 2008, §4.2; u_budget_mode) and level passes
+# (the LOQ define: 0 one integer level per pixel, 1 write the fractional level, 3 blend the two levels).
+BUDGET_UNIFORM, BUDGET_BORDER, BUDGET_UNBOUNDED = 0, 1, 2
+LOQ_INTEGER, LOQ_WRITE, LOQ_BLEND = 0, 1, 3
 
 # REFERENCE's sample weights (u_weight_mode).
 WEIGHT_NONE = 0             # plain average of the hard maps

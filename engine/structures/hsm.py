@@ -20,14 +20,23 @@ class Hsm:
 
     @property
     def nbytes(self) -> int:
-        pw, ph = self.padded
-        per = sum(max(pw >> l_, 1) * max(ph >> l_, 1) * 8 for l_ in range(self.levels))
-        return per * sum(p is not None for p in self.pyramids)
+        return chain_bytes(*self.padded, 8) * sum(p is not None for p in self.pyramids)
+
+
+def padded_size(width: int, height: int) -> tuple[int, int]:
+    """The power-of-two size a pyramid's level 0 is padded to."""
+    return 1 << max(width - 1, 0).bit_length(), 1 << max(height - 1, 0).bit_length()
+
+
+def chain_bytes(width: int, height: int, texel_bytes: int) -> int:
+    """Bytes of a power-of-two padded mip chain down to 1×1 (at 1024² RG32F: 10.67 MiB, Table 1's HSM)."""
+    pw, ph = padded_size(width, height)
+    return sum(max(pw >> l_, 1) * max(ph >> l_, 1) * texel_bytes for l_ in range(level_count(pw, ph)))
 
 
 def build_pyramid(frame, depth, width: int, height: int):
     """Min/max pyramid of one R32F depth map. Returns (texture, levels, padded size)."""
-    pw, ph = 1 << max(width - 1, 0).bit_length(), 1 << max(height - 1, 0).bit_length()
+    pw, ph = padded_size(width, height)
     levels = level_count(pw, ph)
     tex = frame.texture((pw, ph), 2)
     tex.build_mipmaps(0, levels - 1)
@@ -47,15 +56,15 @@ def build_pyramid(frame, depth, width: int, height: int):
 
 
 @structure(HSM, requires=(PEELED_LAYERS,))
-def build(frame, lc, mssm_first: bool = False):
+def build(frame, lc, mssm_first: bool = False, ysm_first: bool = False):
     """`mssm_first`: layer 0 is read from an MSSM (built as its own structure); its pyramid is left out when
-    that MSSM holds every level."""
+    that MSSM holds every level. `ysm_first`: the YSM structure holds layer 0's pyramid."""
     w, h = lc.view.width, lc.view.height
-    pw, ph = 1 << max(w - 1, 0).bit_length(), 1 << max(h - 1, 0).bit_length()
+    pw, ph = padded_size(w, h)
     pyramids, levels = [], level_count(pw, ph)
     with frame.timings.stage("bp_hsm"):
         for i, depth in enumerate(lc.structures[PEELED_LAYERS].maps):
-            if i == 0 and mssm_first and mssm_levels(w, h) >= level_count(w, h):
+            if i == 0 and (ysm_first or (mssm_first and mssm_levels(w, h) >= level_count(w, h))):
                 pyramids.append(None)
                 continue
             pyramids.append(build_pyramid(frame, depth, w, h)[0])

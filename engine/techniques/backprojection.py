@@ -28,17 +28,23 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.shader_constants import (CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, PRIMITIVE_MICROPATCH,
-                                     PRIMITIVE_MICROQUAD, REFINE_HSM, REFINE_MSSM, REFINE_NONE)
+from ..core.shader_constants import (BUDGET_BORDER, BUDGET_UNBOUNDED, BUDGET_UNIFORM, CLASS_BACKPROJECTED,
+                                     CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
+                                     PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
+                                     REFINE_MSSM, REFINE_NONE, REFINE_YSM)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from ..structures import need
 from ..structures.hsm import HSM
+from ..structures.microrects import MICRORECTS
 from ..structures.mssm import MSSM, level_count
 from ..structures.peeled_layers import PEELED_LAYERS
+from ..structures.ysm import YSM
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
 
 PRIMITIVES = (("MICROPATCH", "Micropatches", "Each texel a square parallel to the light (GBP06)"),
-              ("MICROQUAD", "Microquads", "Texel centres as quad vertices (Schwarz & Stamminger §4)"))
+              ("MICROQUAD", "Microquads", "Texel centres as quad vertices (Schwarz & Stamminger §4)"),
+              ("MICRORECT", "Microrects", "Micropatches whose coarse-level extents follow the occluders, by a "
+               "greedy merge (Schwarz & Stamminger 2008, §5.2); level 0 equals micropatches"))
 ACCUMULATIONS = (
     ("AREA", "Area accumulation", "Sum of the backprojected areas, clamped to 1 (GBP06): overlaps count twice"),
     ("BITMASK_8", "Bitmask 8×8", "Occlusion bitmask, regular 8×8 light samples"),
@@ -48,10 +54,19 @@ ACCUMULATIONS = (
 )
 REFINEMENTS = (("NONE", "None", "Search the whole pyramid ∩ near plane; no lit/umbra classification"),
                ("HSM", "HSM", "Min/max mip pyramid (GBP06)"),
-               ("MSSM", "MSSM", "Multi-scale shadow map: full resolution at every level (§5)"))
+               ("MSSM", "MSSM", "Multi-scale shadow map: full resolution at every level (§5)"),
+               ("YSM", "YSM", "Y shadow map: the HSM's first levels plus a 256² MSSM built from the HSM "
+                "(Schwarz & Stamminger 2008, §6)"))
+BUDGET_MAPS = (("UNIFORM", "Uniform", "The same budget b at every pixel"),
+               ("BORDER", "Border falloff", "b at the image centre falling linearly to the border budget at the "
+                "left and right borders (Schwarz & Stamminger 2008, Fig. 1d)"),
+               ("UNBOUNDED", "Unbounded (b = ∞)", "Level 0 always, no blending: the paper's baseline"))
+BUDGET_MODE = {"UNIFORM": BUDGET_UNIFORM, "BORDER": BUDGET_BORDER, "UNBOUNDED": BUDGET_UNBOUNDED}
+PRIMITIVE = {"MICROPATCH": PRIMITIVE_MICROPATCH, "MICROQUAD": PRIMITIVE_MICROQUAD, "MICRORECT": PRIMITIVE_MICRORECT}
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
-REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM}
+REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
+LOQ_DEPTH_JUMP = 0.05           # relative light-depth jump at which the LOQ smoothing stops (a discontinuity)
 
 
 def sample_pattern(accumulation: str) -> tuple[int, tuple, tuple]:
@@ -138,7 +153,7 @@ class Backprojection(Technique):
                    "bitmasks with correct occluder fusion, microquads, HSM/MSSM search-area refinement, depth "
                    "peeling. Area lights of every shape, point/spot radius as a disk, sun as a disk of "
                    "directions; textured lights through per-sample colours")
-    needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM)    # all it may use; needs_for picks from the options
+    needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM, YSM, MICRORECTS)  # all it may use; needs_for picks
     options = (
         Option("bp_primitive", "MICROPATCH", "Micro-occluders", "How depth-map texels become occluders",
                items=PRIMITIVES),
@@ -149,7 +164,18 @@ class Backprojection(Technique):
         Option("bp_refinement", "MSSM", "Search refinement",
                "Narrow the search area and classify fully lit / umbra pixels (§5)", items=REFINEMENTS),
         Option("bp_budget", 16, "Budget", "At most b×b micro-occluders per pixel and depth layer; larger search "
-               "areas use a coarser level", min=2, max=64),
+               "areas use a coarser level (with a border falloff: b at the image centre)", min=2, max=64),
+        Option("bp_budget_map", "UNIFORM", "Budget map", "How the budget b_mo varies over the image (§4.2 of "
+               "the 2008 paper)", items=BUDGET_MAPS),
+        Option("bp_budget_border", 5, "Border budget", "Budget at the left/right image borders (border falloff)",
+               min=2, max=64),
+        Option("bp_blend", False, "Level blending", "Fractional level from area and budget, smoothed in an LOQ "
+               "map (11×11 bilateral, stops at depth discontinuities), visibility of the two nearest levels "
+               "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
+        Option("bp_query_growth", False, "Over-precision fix", "Grow the queried area to the support of the "
+               "micro-occluders of the level it will use before classifying (2008, §6)"),
+        Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
+               "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
         Option("bp_filter_passes", 0, "Filter passes",
                "Post-filter passes of the bitmask visibility driven by the area values (§3.1)", min=0, max=16),
         Option("bp_layers", 1, "Depth layers", "Depth-peeled layers from the light centre (§3.2)", min=1, max=4),
@@ -172,7 +198,12 @@ class Backprojection(Technique):
                       ("BITMASK_16", "MICROPATCH"), ("BITMASK_16J", "MICROPATCH"), ("BITMASK_32", "MICROPATCH"),
                       ("BITMASK_16J", "MICROQUAD"))]
         + [{"bp_refinement": "NONE"}, {"bp_layers": 2}, {"bp_filter_passes": 5}, {"bp_budget": 8},
-           {"bp_budget": 32}, {"bp_gap_fill": False}, {"shadow_map_size": 512}, {"shadow_map_size": 2048}])
+           {"bp_budget": 32}, {"bp_gap_fill": False}, {"shadow_map_size": 512}, {"shadow_map_size": 2048}]
+        # Schwarz & Stamminger 2008: budget maps, blending, over-precision fix, microrects, YSM.
+        + [{"bp_budget_map": "UNBOUNDED"}, {"bp_budget_map": "BORDER", "bp_budget": 12, "bp_budget_border": 5},
+           {"bp_blend": True}, {"bp_query_growth": True}, {"bp_primitive": "MICRORECT"},
+           {"bp_refinement": "YSM"},
+           {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}])
 
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
@@ -181,15 +212,17 @@ class Backprojection(Technique):
         """Depth map, its peeled layers (§3.2), their min/max pyramids and, for MSSM refinement, the
         multi-scale shadow map of layer 0 (§5), which then stands in for layer 0's pyramid."""
         o = self.settings_of(s)
-        mssm = o["bp_refinement"] == "MSSM"
-        return (DEPTH_MAP, need(PEELED_LAYERS, layers=int(o["bp_layers"])), need(HSM, mssm_first=mssm),
-                *((MSSM,) if mssm else ()))
+        mssm, ysm = o["bp_refinement"] == "MSSM", o["bp_refinement"] == "YSM"
+        hsm = need(HSM, mssm_first=mssm, ysm_first=True) if ysm else need(HSM, mssm_first=mssm)
+        return (DEPTH_MAP, need(PEELED_LAYERS, layers=int(o["bp_layers"])), hsm,
+                *((MSSM,) if mssm else ()), *((YSM,) if ysm else ()),
+                *((MICRORECTS,) if o["bp_primitive"] == "MICRORECT" else ()))
 
     def visibility(self, frame, lc, out):
         s, light, view = frame.settings, lc.light, lc.view
         o = self.settings_of(s)
         accumulation, refine = o["bp_accumulation"], REFINE[o["bp_refinement"]]
-        bits, primitive = BITS[accumulation], PRIMITIVE_MICROQUAD if o["bp_primitive"] == "MICROQUAD" else PRIMITIVE_MICROPATCH
+        bits, primitive = BITS[accumulation], PRIMITIVE[o["bp_primitive"]]
         filter_passes = int(o["bp_filter_passes"]) if bits else 0
         round_ = is_round(light)
         texture = light_texture(light) if bits else None
@@ -206,12 +239,30 @@ class Backprojection(Technique):
         if refine == REFINE_MSSM:
             mssm = lc.structures[MSSM]
             samplers["u_mssm"], n_mssm = mssm.texture, mssm.levels
+        ysm_uniforms = {}
+        if refine == REFINE_YSM:
+            ysm = lc.structures[YSM]
+            samplers["u_hsm0"] = ysm.pyramid
+            if ysm.texture is not None:
+                samplers["u_ysm"] = ysm.texture
+            ysm_uniforms = {"u_ysm_base": ysm.base, "u_ysm_levels": ysm.levels, "u_ysm_size": ysm.size}
+        if primitive == PRIMITIVE_MICRORECT:
+            rects = lc.structures[MICRORECTS]
+            for i, (d, e) in enumerate(zip(rects.depth, rects.extent)):
+                samplers[f"u_mr_depth{i}"], samplers[f"u_mr_extent{i}"] = d, e
+        budget_mode = BUDGET_MODE[o["bp_budget_map"]]
+        force = int(o["bp_force_level"])
+        # Blending (2008 §4.2) needs a level that varies: not for an unbounded budget, a forced level or a
+        # light without extent (a plain hard test).
+        blend = bool(o["bp_blend"]) and budget_mode != BUDGET_UNBOUNDED and force < 0 and not light.is_delta
 
         shape = light_shape_uniforms(light, view)
         n, jx, jy = sample_pattern(accumulation) if bits else (0, (0.5, 0.5), (0.5, 0.5))
         valid = valid_mask(accumulation, round_) if bits else np.zeros((0, 0), bool)
         uniforms = {**lc.uniforms, **shape, "u_round": int(round_),
-                    "u_delta": int(light.is_delta), "u_budget": int(o["bp_budget"]), "u_levels": int(levels),
+                    "u_delta": int(light.is_delta), "u_budget": float(o["bp_budget"]), "u_levels": int(levels),
+                    "u_budget_border": float(o["bp_budget_border"]), "u_budget_mode": int(budget_mode),
+                    "u_force_level": force, **ysm_uniforms,
                     "u_mssm_levels": int(n_mssm),
                     "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
                     "u_valid_count": float(max(valid.sum(), 1))}
@@ -231,8 +282,19 @@ class Backprojection(Technique):
         defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
                    "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
                    "WEIGHTED": int(bits > 0 and o["bp_weighting"] == "IRRADIANCE" and not light.is_delta),
-                   "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes)}
+                   "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
+                   "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER}
         frame.progress.check()
+        if blend:
+            with frame.timings.stage("bp_loq"):
+                samplers["u_loq"] = self._loq_map(frame, uniforms, samplers, images, defines, size)
+            defines["LOQ"] = LOQ_BLEND
+            if s.collect_stats:         # the smoothed level against the pixel's own (the guard, §4.2)
+                loq = frame.read(samplers["u_loq"])
+                bp = loq[..., 2] >= 0.0
+                drop = (loq[..., 2] - loq[..., 0])[bp]
+                lc.stats.update({"level_drop_max": float(drop.max()) if bp.any() else 0.0,
+                                 "level_change_max": float(np.abs(drop).max()) if bp.any() else 0.0})
         with frame.timings.stage("bp_gather"):
             frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
                            defines=defines)
@@ -249,6 +311,19 @@ class Backprojection(Technique):
         # Share of backprojecting pixels and micro-occluders per such pixel (costs a readback).
         if s.collect_stats or s.debug_passes:
             self._gather_debug(frame, lc, info, rgb_tex, out)
+
+    @staticmethod
+    def _loq_map(frame, uniforms, samplers, images, defines, size):
+        """Passes 1 and 2 of 2008 §4.2: classify and write each pixel's fractional level ℓ (visibility.comp with
+        LOQ_WRITE), then smooth it with the separable bilateral filter (loq.comp), the guard in the last pass."""
+        loq, tmp = frame.texture(size, 4), frame.texture(size, 4)
+        frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers,
+                       images={**images, 3: loq}, defines={**defines, "LOQ": LOQ_WRITE})
+        for src, dst, direction, guard in ((loq, tmp, (1, 0), 0), (tmp, loq, (0, 1), 1)):
+            frame.dispatch("backprojection/loq.comp", {"u_dir": direction, "u_guard": guard,
+                                                       "u_depth_jump": LOQ_DEPTH_JUMP},
+                           samplers={"u_src": src}, images={0: dst})
+        return loq
 
     def _gather_debug(self, frame, lc, info, rgb_tex, out):
         a = frame.read(info)

@@ -7,6 +7,14 @@
 // (GBP06) or OR-ed into an occlusion bitmask of light samples (§3). At most BUDGET² micro-occluders per
 // layer: larger areas use a coarser hierarchy level on that level's grid (§5).
 //
+// Quality scalability (Schwarz & Stamminger 2008): the budget b_mo(x, y) may vary over the image (§4.2); with
+// LOQ = LOQ_WRITE this program only classifies and writes each pixel's fractional level ℓ into the LOQ map
+// (pass 1), loq.comp smooths it (pass 2), and LOQ = LOQ_BLEND gathers at ⌊ℓ⌋ and ⌈ℓ⌉ and blends (pass 3).
+// Microrects (§5.2) come from their own mip chains (structures/microrects.py); the YSM (§6) is the HSM's
+// first n levels plus an MSSM built from HSM level n−1; GROW (§6) grows the queried area to the support of
+// the micro-occluders of the level it will use, so that no pixel is proven lit more precisely than that
+// level can shade it.
+//
 // Backprojection, light-local frame (light plane z = 0, map looking down −Z from its centre). A point at
 // window coordinate t (tangent at unit depth) and depth z seen from a receiver at window coordinate tp and
 // depth d lands on the light plane at  x = (t − tp) · z·d/(d − z)  (perspective; from x = p + (q − p)·d/(d−z)
@@ -41,10 +49,19 @@
 #ifndef NEED_AREA
 #define NEED_AREA 1
 #endif
+#ifndef LOQ
+#define LOQ LOQ_INTEGER
+#endif
+#ifndef GROW
+#define GROW 0
+#endif
 
 uniform int u_round;            // disk / ellipse / sphere / sun: samples outside the ellipse never count
 uniform int u_delta;            // light without extent: plain hard shadow
-uniform int u_budget;           // b: at most b×b micro-occluders per layer
+uniform float u_budget;         // b: at most b×b micro-occluders per layer (the budget map's centre value)
+uniform float u_budget_border;  // BUDGET_BORDER: b at the left and right image borders
+uniform int u_budget_mode;      // BUDGET_UNIFORM, BUDGET_BORDER or BUDGET_UNBOUNDED (b = ∞: level 0 always)
+uniform int u_force_level;      // ≥ 0: every pixel gathers at this level (the study's forced coarse levels)
 uniform int u_levels;           // hierarchy levels available (0 … u_levels−1)
 uniform vec2 u_jitter_x;        // bitmask sample x offset within its column, per row parity (§3)
 uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per column parity
@@ -60,9 +77,29 @@ uniform sampler2D u_hsm2;
 uniform sampler2D u_hsm3;
 uniform sampler2DArray u_mssm;  // layer 0 multi-scale shadow map (REFINE_MSSM)
 uniform int u_mssm_levels;      // MSSM levels stored; coarser ones come from the HSM (§5's hybrid)
+uniform sampler2DArray u_ysm;   // REFINE_YSM: MSSM part built from HSM level u_ysm_base, its levels 1 … K
+uniform int u_ysm_base;         // n − 1
+uniform int u_ysm_levels;       // K (array layer k − 1 holds MSSM level k)
+uniform ivec2 u_ysm_size;       // resolution of the MSSM part (HSM level n − 1)
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+uniform sampler2D u_mr_depth0;  // per layer: microrect depth (R32F) and extent (RGBA32F: x0, y0, x1, y1 in
+uniform sampler2D u_mr_extent0; // level-0 texels, exclusive upper end), full mip chains
+uniform sampler2D u_mr_depth1;
+uniform sampler2D u_mr_extent1;
+uniform sampler2D u_mr_depth2;
+uniform sampler2D u_mr_extent2;
+uniform sampler2D u_mr_depth3;
+uniform sampler2D u_mr_extent3;
+#endif
+#if LOQ == LOQ_BLEND
+uniform sampler2D u_loq;        // smoothed LOQ map: r = ℓ (negative: no backprojection)
+#endif
 
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 layout(rgba32f, binding = 1) uniform writeonly image2D u_info;      // class, level, count, A
+#if LOQ == LOQ_WRITE
+layout(rgba32f, binding = 3) uniform writeonly image2D u_loq_out;   // ℓ, map depth, ℓ, 0 (pass 1)
+#endif
 #if TEXTURED
 uniform sampler2D u_sample_color;   // BITS×BITS: rgb colour of each light sample, a its luminance
 layout(rgba32f, binding = 2) uniform writeonly image2D u_rgb;
@@ -114,11 +151,34 @@ vec2 cell_minmax(int layer, int l, ivec2 c) {
     return vec2(NO_OCCLUDER);
 }
 
-float cell_depth(int layer, int l, ivec2 c) {
+bool cell_outside(int l, ivec2 c) {
     ivec2 n = (u_map_size + (1 << l) - 1) >> l;
-    if (any(lessThan(c, ivec2(0))) || any(greaterThanEqual(c, n))) return NO_OCCLUDER;
+    return any(lessThan(c, ivec2(0))) || any(greaterThanEqual(c, n));
+}
+
+float cell_depth(int layer, int l, ivec2 c) {
+    if (cell_outside(l, c)) return NO_OCCLUDER;
     return cell_minmax(layer, l, c).x;
 }
+
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+// Microrect of texel c of level l (§5.2): its depth and its extent [x0, x1) × [y0, y1) in level-0 texels.
+float rect_depth(int layer, int l, ivec2 c, out vec4 ext) {
+    ext = vec4(0.0);
+    if (cell_outside(l, c)) return NO_OCCLUDER;
+    if (layer == 0) { ext = texelFetch(u_mr_extent0, c, l); return texelFetch(u_mr_depth0, c, l).r; }
+#if LAYERS > 1
+    if (layer == 1) { ext = texelFetch(u_mr_extent1, c, l); return texelFetch(u_mr_depth1, c, l).r; }
+#endif
+#if LAYERS > 2
+    if (layer == 2) { ext = texelFetch(u_mr_extent2, c, l); return texelFetch(u_mr_depth2, c, l).r; }
+#endif
+#if LAYERS > 3
+    if (layer == 3) { ext = texelFetch(u_mr_extent3, c, l); return texelFetch(u_mr_depth3, c, l).r; }
+#endif
+    return NO_OCCLUDER;
+}
+#endif
 
 // ---- search area -----------------------------------------------------------------------------------------
 // Half extent (texels) of the pyramid section at occluder depth z: h·spread(z, d) (common/penumbra.glsl),
@@ -165,6 +225,34 @@ vec2 cell_minmax_raw_mssm(ivec2 t, int l) {
 }
 #endif
 
+#if REFINE == REFINE_YSM
+// YSM sample (§6): MSSM level k of the part built from HSM level n − 1 (level 0 is that HSM level itself,
+// not stored again). t is on the level-(n − 1) grid.
+vec2 ysm_sample(ivec2 t, int k) {
+    t = clamp(t, ivec2(0), u_ysm_size - 1);
+    if (k == 0) return texelFetch(u_hsm0, t, u_ysm_base).rg;
+    return texelFetch(u_ysm, ivec3(t, k - 1), 0).rg;
+}
+
+// Depth range over [lo, hi] from the YSM: the HSM's ≤ 2×2 cells while the area spans at most two cells of
+// a level below n; beyond, the MSSM part on the level-(n − 1) grid, as area_bound does with a full MSSM.
+vec2 ysm_bound(ivec2 lo, ivec2 hi, int fine) {
+    int s = u_ysm_base;
+    if (all(lessThanEqual((hi >> s) - (lo >> s), ivec2(1)))) return hsm_bound(lo, hi);
+    ivec2 clo = lo >> s, chi = hi >> s;
+    ivec2 n = chi - clo + 1;
+    int k = ceil_log2(max(n.x, n.y));
+    if (fine == 0 && k <= u_ysm_levels) return ysm_sample(clo + (1 << (k - 1)), k);
+    k = ceil_log2(max((n.x + 1) / 2, (n.y + 1) / 2));
+    if (k > u_ysm_levels) return hsm_bound(lo, hi);
+    ivec2 a = k == 0 ? clo : clo + (1 << (k - 1));
+    ivec2 b = k == 0 ? chi : chi + 1 - (1 << (k - 1));
+    vec2 m0 = ysm_sample(a, k), m1 = ysm_sample(ivec2(b.x, a.y), k);
+    vec2 m2 = ysm_sample(ivec2(a.x, b.y), k), m3 = ysm_sample(b, k);
+    return vec2(min(min(m0.x, m1.x), min(m2.x, m3.x)), max(max(m0.y, m1.y), max(m2.y, m3.y)));
+}
+#endif
+
 // Depth range bound over the area (§5). `fine` = 0: one MSSM sample covering it (HSM: the ≤ 2×2 cells of
 // the level where it spans at most two); `fine` = 1: four MSSM samples on the corners of the area whose
 // (overlapping) neighbourhoods tightly cover it.
@@ -183,6 +271,8 @@ vec2 area_bound(ivec2 lo, ivec2 hi, int fine) {
     vec2 m0 = cell_minmax_raw_mssm(a, l), m1 = cell_minmax_raw_mssm(ivec2(b.x, a.y), l);
     vec2 m2 = cell_minmax_raw_mssm(ivec2(a.x, b.y), l), m3 = cell_minmax_raw_mssm(b, l);
     return vec2(min(min(m0.x, m1.x), min(m2.x, m3.x)), max(max(m0.y, m1.y), max(m2.y, m3.y)));
+#elif REFINE == REFINE_YSM
+    return ysm_bound(lo, hi, fine);
 #else
     return hsm_bound(lo, hi);
 #endif
@@ -305,6 +395,35 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     return true;
 }
 
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+// Microrect of texel c (level l, §5.2): a micropatch over its own extent at its (minimum) depth; gap filling
+// as for micropatches, towards the left/bottom neighbour microrect when its extent reaches this one's. At
+// level 0 extent and depth are the texel's own, so this is exactly micropatch().
+bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
+    vec4 ext;
+    float z = rect_depth(layer, l, c, ext);
+    vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
+    area = 0.0;
+    if (!cell_occludes(p, z, p0, p1, l)) return false;
+    vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
+    a = backproject(p, w0, z);
+    b = backproject(p, w1, z);
+#if GAP_FILL
+    vec4 el, eb;
+    float zl = rect_depth(layer, l, c - ivec2(1, 0), el);
+    if (el.z >= p0.x && cell_occludes(p, zl, el.xy, min(el.zw, vec2(u_map_size)), l))
+        a.x = min(a.x, (w0.x - p.tp.x) * k_of(p, zl) / u_light_half.x);
+    float zb = rect_depth(layer, l, c - ivec2(0, 1), eb);
+    if (eb.w >= p0.y && cell_occludes(p, zb, eb.xy, min(eb.zw, vec2(u_map_size)), l))
+        a.y = min(a.y, (w0.y - p.tp.y) * k_of(p, zb) / u_light_half.y);
+#endif
+#if NEED_AREA
+    area = rect_area(a, b);
+#endif
+    return true;
+}
+#endif
+
 // Microquad (§4) whose corners are the centres of cells c, c+(1,0), c+(0,1), c+(1,1): backprojected only
 // when all four are occluders. Area accumulation: the quad with its corners clamped to the light rectangle
 // (Fig. 6 left; watertight). Bitmask (and round lights): the axis-aligned rectangle through the midpoints of
@@ -372,20 +491,77 @@ Pixel make_pixel(ivec2 px) {
     return p;
 }
 
+// ---- budget and level (Schwarz & Stamminger 2008, §4.2) ----------------------------------------------------
+// b_mo at this pixel: uniform, or falling linearly from the centre value to u_budget_border at the left and
+// right image borders (the paper's Fig. 1d).
+float pixel_budget(ivec2 px) {
+    if (u_budget_mode == BUDGET_BORDER) {
+        float t = abs((float(px.x) + 0.5) / float(u_image_size.x) * 2.0 - 1.0);
+        return mix(u_budget, u_budget_border, t);
+    }
+    return u_budget;
+}
+
+// Microquads need one more cell per side than the area holds (the quads between cell centres).
+const int QUAD_EXTRA = PRIMITIVE == PRIMITIVE_MICROQUAD ? 1 : 0;
+
+// Integer level (2007): the finest whose grid covers [lo, hi] with at most b cells per side.
+int integer_level(ivec2 lo, ivec2 hi, float b) {
+    if (u_force_level >= 0) return min(u_force_level, u_levels - 1);
+    if (u_budget_mode == BUDGET_UNBOUNDED) return 0;
+    int l = 0;
+    while (l < u_levels - 1 && any(greaterThan(vec2((hi >> l) - (lo >> l) + 1 + QUAD_EXTRA), vec2(b)))) ++l;
+    return l;
+}
+
+// Fractional level ℓ (§4.2), continuous in the area's side n: log2(n / (b − 1 − extra)), so that ⌈ℓ⌉'s grid
+// covers the area with at most b cells per side even where it straddles a cell boundary (one cell more
+// than n / 2^⌈ℓ⌉); ℓ = 0 while the area fits at level 0.
+float fractional_level(ivec2 lo, ivec2 hi, float b) {
+    if (u_force_level >= 0) return float(min(u_force_level, u_levels - 1));
+    if (u_budget_mode == BUDGET_UNBOUNDED) return 0.0;
+    float n = float(max(hi.x - lo.x, hi.y - lo.y) + 1);
+    return clamp(log2(n / max(b - 1.0 - float(QUAD_EXTRA), 1.0)), 0.0, float(u_levels - 1));
+}
+
+// The level a pixel will gather at for [lo, hi] (with blending: the coarser of its two levels).
+int query_level(ivec2 lo, ivec2 hi, float b) {
+#if LOQ == LOQ_INTEGER
+    return integer_level(lo, hi, b);
+#else
+    return int(ceil(fractional_level(lo, hi, b)));
+#endif
+}
+
+#if GROW
+// Over-precision fix (§6): the texels the level-j micro-occluders touching [lo, hi] read — whole level-j
+// cells, one more per side for microquads (quads span neighbouring cell centres) and microrects (extents
+// reach towards the neighbouring reference points).
+void grow_to_support(inout ivec2 lo, inout ivec2 hi, int j) {
+    int extra = PRIMITIVE == PRIMITIVE_MICROPATCH ? 0 : 1;
+    lo = max(((lo >> j) - extra) << j, ivec2(0));
+    hi = min((((hi >> j) + 1 + extra) << j) - 1, u_map_size - 1);
+}
+#endif
+
 // Classify (§2.1, §5): the search area (pyramid ∩ near plane) as [lo, hi]; with a refinement, bound its
 // depth range, classify, narrow the area to occluders no nearer than z_min, bound again (finer), classify
 // and narrow once more before any micro-occluder is touched. Returns the class.
-int classify(Pixel p, out ivec2 lo, out ivec2 hi) {
+int classify(Pixel p, float budget, out ivec2 lo, out ivec2 hi) {
     bool inside = search_area(p, u_light_depth_range.x, lo, hi);
     int state = inside ? CLASS_BACKPROJECTED : CLASS_LIT;
 #if REFINE != REFINE_NONE
     float d_biased = p.d - p.r.bias;
     for (int pass = 0; pass < 2 && state == CLASS_BACKPROJECTED; ++pass) {
-        vec2 zr = area_bound(lo, hi, pass);
+        ivec2 qlo = lo, qhi = hi;
+#if GROW
+        grow_to_support(qlo, qhi, query_level(lo, hi, budget));
+#endif
+        vec2 zr = area_bound(qlo, qhi, pass);
         // The receiver plane's depth over the area: 1/z is linear in the window, so the corners bound it.
         float plo = d_biased, phi = d_biased;
         for (int i = 0; i < 4; ++i) {
-            vec2 corner = vec2((i & 1) == 0 ? lo.x : hi.x + 1, (i >> 1) == 0 ? lo.y : hi.y + 1);
+            vec2 corner = vec2((i & 1) == 0 ? qlo.x : qhi.x + 1, (i >> 1) == 0 ? qlo.y : qhi.y + 1);
             float pz = receiver_depth_at(p.r, corner);
             plo = min(plo, pz);
             phi = max(phi, pz);
@@ -398,23 +574,18 @@ int classify(Pixel p, out ivec2 lo, out ivec2 hi) {
     return state;
 }
 
-// Gather (§4, §5): every micro-occluder of every layer over [lo, hi], at the finest level whose grid covers
-// the area with at most b (microquads: b − 1) cells per side; sampling positions stay on that level's grid.
-Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, out float level, out float count) {
-    int extra = PRIMITIVE == PRIMITIVE_MICROQUAD ? 1 : 0;
-    int l = 0;
-    while (l < u_levels - 1 && any(greaterThan((hi >> l) - (lo >> l) + 1 + extra, ivec2(u_budget)))) ++l;
-    level = float(l);
-    count = 0.0;
+// Gather (§4, §5): every micro-occluder of every layer over [lo, hi] on the grid of level l; adds the
+// micro-occluders processed to `count`.
+Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, int l, inout float count) {
     ivec2 c0 = lo >> l, c1 = hi >> l;
     Occlusion o;
     o.area = 0.0;
 #if BITS > 0
     for (int i = 0; i < BITS; ++i) o.bits[i] = 0u;
 #endif
-    // Micropatches: the area's cells; microquads: the quads between the centres of its cells and their
-    // neighbours (one more per side).
-    ivec2 first = PRIMITIVE == PRIMITIVE_MICROQUAD ? c0 - 1 : c0;
+    // Micropatches and microrects: the area's cells; microquads: the quads between the centres of its
+    // cells and their neighbours (one more per side).
+    ivec2 first = c0 - QUAD_EXTRA;
     for (int layer = 0; layer < LAYERS; ++layer) {
         for (int y = first.y; y <= c1.y; ++y)
             for (int x = first.x; x <= c1.x; ++x) {
@@ -422,6 +593,8 @@ Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, out float level, out float count) 
                 float area;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
                 bool hit = micropatch(p, layer, l, ivec2(x, y), a, b, area);
+#elif PRIMITIVE == PRIMITIVE_MICRORECT
+                bool hit = microrect(p, layer, l, ivec2(x, y), a, b, area);
 #else
                 bool hit = microquad(p, layer, l, ivec2(x, y), a, b, area);
 #endif
@@ -481,6 +654,9 @@ void resolve(Pixel p, Occlusion o, inout Result res) {
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
+#if LOQ == LOQ_WRITE
+    imageStore(u_loq_out, px, vec4(-1.0, 0.0, -1.0, 0.0));     // no backprojection unless found below
+#endif
     if (!pixel_lit(px)) {
         imageStore(u_visibility, px, vec4(1.0));
         imageStore(u_info, px, vec4(float(CLASS_UNREACHED), 0.0, 0.0, 1.0));
@@ -497,14 +673,44 @@ void main() {
         res = Result(v, float(v > 0.5 ? CLASS_LIT : CLASS_UMBRA), 0.0, 0.0, v, vec3(v));
     } else {
         ivec2 lo, hi;
-        int cls = classify(p, lo, hi);
+        float budget = pixel_budget(px);
+        int cls = classify(p, budget, lo, hi);
+#if LOQ == LOQ_WRITE
+        // Pass 1 (§4.2): the LOQ map — ℓ of backprojecting pixels, −1 elsewhere (the smoothing stops there),
+        // beside the map depth the smoothing compares.
+        float ell = cls == CLASS_BACKPROJECTED ? fractional_level(lo, hi, budget) : -1.0;
+        imageStore(u_loq_out, px, vec4(ell, p.d, ell, 0.0));
+        return;
+#else
         if (cls == CLASS_UMBRA) {
             res = Result(0.0, float(CLASS_UMBRA), 0.0, 0.0, 0.0, vec3(0.0));
         } else if (cls == CLASS_BACKPROJECTED) {
             res.cls = float(CLASS_BACKPROJECTED);
-            Occlusion o = gather(p, lo, hi, res.level, res.count);
+#if LOQ == LOQ_BLEND
+            // Pass 3 (§4.2): always blend the visibility of ⌊ℓ⌋ and ⌈ℓ⌉ by ℓ's fraction (no Δℓ band).
+            float ell = texelFetch(u_loq, px, 0).r;
+            if (ell < 0.0) ell = fractional_level(lo, hi, budget);
+            int l0 = int(floor(ell)), l1 = min(l0 + 1, u_levels - 1);
+            float f = l1 > l0 ? ell - float(l0) : 0.0;
+            res.level = ell;
+            Occlusion o = gather(p, lo, hi, l0, res.count);
             resolve(p, o, res);
+            if (f > 0.0) {
+                Result r1 = res;
+                o = gather(p, lo, hi, l1, res.count);
+                resolve(p, o, r1);
+                res.v = mix(res.v, r1.v, f);
+                res.a_vis = mix(res.a_vis, r1.a_vis, f);
+                res.rgb = mix(res.rgb, r1.rgb, f);
+            }
+#else
+            int l = integer_level(lo, hi, budget);
+            res.level = float(l);
+            Occlusion o = gather(p, lo, hi, l, res.count);
+            resolve(p, o, res);
+#endif
         }
+#endif
     }
     imageStore(u_visibility, px, vec4(clamp(res.v, 0.0, 1.0)));
     imageStore(u_info, px, vec4(res.cls, res.level, res.count, res.a_vis));

@@ -10,10 +10,11 @@ STUDIES = {
     "spsm": "Lecocq et al. 2014, sub-pixel shadow maps vs HARD: pixel match, time, look-up shares, quantiser",
     "pvsm": "Shen et al. 2011, predicted virtual soft shadow maps: closed form, anti-aliasing, stages, ρ, tiles",
     "msaa": "Schwarz & Stamminger 2008 §7, one visibility sample per pixel: MSAA overhead and edge error per technique",
+    "quality-scalability": "Schwarz & Stamminger 2008, quality scalability: budgets, blending, microrects, YSM",
 }
 
 
 def run(name: str, argv: list[str]) -> int:
     if name not in STUDIES:
         raise ValueError(f"Unknown study '{name}'; choose one of {', '.join(STUDIES)}")
-    return importlib.import_module(f"{__name__}.{name}").main(argv)
+    return importlib.import_module(f"{__name__}.{name.replace('-', '_')}").main(argv)

@@ -1,0 +1,112 @@
+// Microrects (Schwarz & Stamminger 2008, §5.2): one micro-occluder per texel of every level, with its own
+// depth and its extent, a rectangle of level-0 texels. Level 0 is the depth map's micropatches (extent = the
+// texel). Level i + 1 texel c keeps the reference point of level-i texel A = 2c and gathers level-i
+// microrects by a greedy two-pass merge:
+//   pass 1: the positive-x neighbour B joins A when its depth is nearer A's than that of the next retained
+//           texel C = 2c + (2, 0) (likewise D = 2c + (0, 1) against 2c + (0, 2)); the diagonal E = 2c + (1, 1)
+//           joins when the extent so far already contains E's;
+//   pass 2: the negative-direction neighbours (2c − (1, 0), 2c − (0, 1), 2c − (1, 1)) that pass 1 left to
+//           no one join.
+// Both passes are pure functions of level i, so one invocation evaluates its neighbours' pass-1 decisions
+// itself. Depth: minimum of the members; extent: the smallest rectangle holding the members' extents, where
+// empty members (no occluder) never widen it. Every level-i microrect joins exactly one level-(i + 1) one.
+layout(local_size_x = 8, local_size_y = 8) in;
+uniform sampler2D u_depth;      // level 0 source (R32F)
+uniform int u_first;            // 1: build level 0
+uniform ivec2 u_map_size;
+uniform ivec2 u_src_size;       // level i (padded) size
+uniform ivec2 u_dst_size;
+layout(r32f, binding = 0) uniform writeonly image2D u_dst_depth;
+layout(rgba32f, binding = 1) uniform writeonly image2D u_dst_extent;
+layout(r32f, binding = 2) uniform readonly image2D u_src_depth;
+layout(rgba32f, binding = 3) uniform readonly image2D u_src_extent;
+
+bool inside(ivec2 t) {
+    return all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_src_size));
+}
+
+float z_of(ivec2 t) {
+    return inside(t) ? imageLoad(u_src_depth, t).r : NO_OCCLUDER;
+}
+
+bool empty(float z) {
+    return !(z < EMPTY_DEPTH);
+}
+
+// Depth difference that decides a merge: empty against an occluder is the largest possible.
+float gap(float a, float b) {
+    if (empty(a) || empty(b)) return empty(a) && empty(b) ? 0.0 : NO_OCCLUDER;
+    return abs(a - b);
+}
+
+// Does the odd (in `axis`) texel t join its negative-side retained neighbour t − axis in pass 1? It does
+// unless the positive-side one t + axis exists and is nearer in depth.
+bool joins_back(ivec2 t, ivec2 axis) {
+    ivec2 fwd = t + axis;
+    if (!inside(fwd)) return true;
+    float z = z_of(t);
+    return gap(z, z_of(t - axis)) <= gap(z, z_of(fwd));
+}
+
+struct Rect {
+    float z;
+    vec4 ext;                   // x0, y0, x1, y1 (exclusive)
+    bool any;                   // ext holds at least one occluder
+};
+
+void add(inout Rect r, ivec2 t) {
+    if (!inside(t)) return;
+    float z = z_of(t);
+    r.z = min(r.z, z);
+    if (empty(z)) return;
+    vec4 e = imageLoad(u_src_extent, t);
+    r.ext = r.any ? vec4(min(r.ext.xy, e.xy), max(r.ext.zw, e.zw)) : e;
+    r.any = true;
+}
+
+bool contains(Rect r, ivec2 t) {
+    if (!r.any) return false;
+    vec4 e = imageLoad(u_src_extent, t);
+    return all(lessThanEqual(r.ext.xy, e.xy)) && all(greaterThanEqual(r.ext.zw, e.zw));
+}
+
+// Pass 1 of the retained texel a: itself, B and D when they join back, E when contained (or when no
+// retained texel lies beyond E to take it in pass 2). `took_e` says whether E joined.
+Rect pass1(ivec2 a, out bool took_e) {
+    Rect r = Rect(NO_OCCLUDER, vec4(0.0), false);
+    add(r, a);
+    ivec2 b = a + ivec2(1, 0), d = a + ivec2(0, 1), e = a + ivec2(1, 1);
+    if (inside(b) && joins_back(b, ivec2(1, 0))) add(r, b);
+    if (inside(d) && joins_back(d, ivec2(0, 1))) add(r, d);
+    took_e = false;
+    if (inside(e)) {
+        took_e = empty(z_of(e)) || contains(r, e) || !inside(e + ivec2(1, 1));
+        if (took_e) add(r, e);
+    }
+    return r;
+}
+
+void main() {
+    ivec2 c = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(c, u_dst_size))) return;
+    if (u_first == 1) {
+        bool in_map = all(lessThan(c, u_map_size));
+        imageStore(u_dst_depth, c, vec4(in_map ? texelFetch(u_depth, c, 0).r : NO_OCCLUDER));
+        imageStore(u_dst_extent, c, vec4(vec2(c), vec2(c + 1)));
+        return;
+    }
+    ivec2 a = 2 * c;
+    bool took_e;
+    Rect r = pass1(a, took_e);
+    // Pass 2: the negative-direction neighbours that no pass-1 merge took.
+    ivec2 x = a - ivec2(1, 0), y = a - ivec2(0, 1), xy = a - ivec2(1, 1);
+    if (inside(x) && !joins_back(x, ivec2(1, 0))) add(r, x);
+    if (inside(y) && !joins_back(y, ivec2(0, 1))) add(r, y);
+    if (inside(xy)) {
+        bool diag_taken;
+        pass1(a - ivec2(2, 2), diag_taken);
+        if (!diag_taken) add(r, xy);
+    }
+    imageStore(u_dst_depth, c, vec4(r.z));
+    imageStore(u_dst_extent, c, r.any ? r.ext : imageLoad(u_src_extent, a));     // empty: A's own extent
+}
