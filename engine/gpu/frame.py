@@ -201,9 +201,17 @@ class Frame:
         """A zero-filled texture, GL_NEAREST, from the worker's pool, back to it with the frame."""
         return self._pooled(self.pool.texture(size, components, dtype))
 
-    def depth_texture(self, size):
+    def depth_texture(self, size, samples: int = 0):
         """A depth texture (contents undefined until cleared) from the pool, back to it with the frame."""
-        return self._pooled(self.pool.depth_texture(size))
+        return self._pooled(self.pool.depth_texture(size, samples))
+
+    def multisample_texture(self, size, components, samples, dtype="f4"):
+        """A multisampled texture (contents undefined until cleared) from the pool, back to it with the frame."""
+        return self._pooled(self.pool.multisample_texture(size, components, samples, dtype))
+
+    def reserved_buffer(self, nbytes: int):
+        """A storage buffer of `nbytes` (contents undefined) from the pool, back to it with the frame."""
+        return self._pooled(self.pool.reserved_buffer(nbytes))
 
     def framebuffer(self, color_attachments, depth_attachment=None):
         """A framebuffer of these attachments: the pool's cached one when they all come from the pool."""
@@ -248,7 +256,7 @@ class Frame:
             self._draw_gbuffer(g, 0)
         if aa:
             with self.timings.stage("gbuffer_resolve"):
-                self.msaa_edges = self.own(EdgeList(self, self.gbuffer_samples))
+                self.msaa_edges = EdgeList(self, self.gbuffer_samples)     # its buffer is the pool's
             self.count(msaa_edge_pixels=self.msaa_edges.count)
         return g
 
@@ -256,12 +264,8 @@ class Frame:
         """Draw the receivers from the camera into the G-buffer `targets` (with a depth buffer of `samples`),
         timed as `stage`."""
         ctx, cam = self.ctx, self.snap.camera
-        if samples:
-            depth = self.own(ctx.depth_texture((self.width, self.height), samples=samples))
-            fbo = self.own(ctx.framebuffer(color_attachments=list(targets.values()), depth_attachment=depth))
-        else:                           # the per-pixel G-buffer comes from the pool, like every target
-            depth = self.depth_texture((self.width, self.height))
-            fbo = self.framebuffer(list(targets.values()), depth)
+        depth = self.depth_texture((self.width, self.height), samples)
+        fbo = self.framebuffer(list(targets.values()), depth)
         with self.timings.stage(stage):
             fbo.use()
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)

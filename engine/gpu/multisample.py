@@ -36,10 +36,10 @@ MSAA_BYTES_PER_PIXEL = MSAA_SAMPLES * (len(GBUFFER_NAMES) * 16 + 4) + 8
 
 def multisampled_targets(frame, size, full: bool = False) -> dict:
     """The G-buffer's targets with MSAA_SAMPLES samples, under the per-pixel names with an `ms_` prefix
-    (the names accumulate_msaa.comp samples them by); owned by the frame. `full`: every target RGBA32F."""
+    (the names accumulate_msaa.comp samples them by); from the frame's pool. `full`: every target RGBA32F."""
     def target(name):
         components, dtype = (4, "f4") if full else _FORMATS[name]
-        return frame.own(frame.ctx.texture(size, components, samples=MSAA_SAMPLES, dtype=dtype))
+        return frame.multisample_texture(size, components, MSAA_SAMPLES, dtype)
     return {"ms_" + name[2:]: target(name) for name in GBUFFER_NAMES}
 
 
@@ -56,14 +56,12 @@ class EdgeList:
         self.uniforms = {"u_msaa_inv_view_proj": mat_uniform(np.linalg.inv(cam.projection @ cam.view)),
                          "u_msaa_camera_position": tuple(inv_view[:3, 3]),
                          "u_msaa_camera_forward": tuple(-inv_view[:3, 2])}
-        self.buffer = frame.ctx.buffer(reserve=16 + 8 * frame.width * frame.height)
+        self.buffer = frame.reserved_buffer(16 + 8 * frame.width * frame.height)
         self.buffer.write(np.zeros(4, np.uint32).tobytes())
         frame.dispatch("render/msaa_classify.comp", samplers=samples, buffers={0: self.buffer})
         self.count = int(np.frombuffer(self.buffer.read(4), np.uint32)[0])
         self.nbytes = self.buffer.size
 
-    def release(self) -> None:
-        self.buffer.release()
 
 
 def shade_edges(frame, light, tau: float, samplers: dict, images: dict, *, has_rgb: bool) -> None:

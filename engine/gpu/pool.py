@@ -63,9 +63,19 @@ class ResourcePool:
         tex.filter = (0x2600, 0x2600)
         return tex
 
-    def depth_texture(self, size):
-        """A depth texture; its contents are undefined (every user clears it with its framebuffer)."""
-        return self._take(("depth", tuple(size)), lambda: self.ctx.depth_texture(size))
+    def depth_texture(self, size, samples: int = 0):
+        """A depth texture (multisampled with `samples`); its contents are undefined (every user clears it
+        with its framebuffer)."""
+        return self._take(("depth", tuple(size), samples), lambda: self.ctx.depth_texture(size, samples=samples))
+
+    def multisample_texture(self, size, components: int, samples: int, dtype: str = "f4"):
+        """A multisampled colour texture; contents undefined (the G-buffer's framebuffer clears it)."""
+        key = ("texture_ms", tuple(size), components, samples, dtype)
+        return self._take(key, lambda: self.ctx.texture(size, components, samples=samples, dtype=dtype))
+
+    def reserved_buffer(self, nbytes: int):
+        """A storage buffer of `nbytes`, contents undefined (its user writes what it reads)."""
+        return self._take(("buffer", nbytes), lambda: self.ctx.buffer(reserve=nbytes))
 
     def buffer(self, data: bytes):
         """A storage buffer holding `data` (reused when one of the same byte size is free)."""
