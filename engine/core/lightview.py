@@ -322,8 +322,9 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
         if int(index) in sides.flat:    # lit pixels on the light's side of its plane (or on it): nothing to shadow
             normal, offset, d_lo, d_hi = sides.flat[int(index)]
             side = _light_side(light, normal, offset)
-            # G-buffer positions on the plane itself carry float32 interpolation error: 1e-4 of the scale
-            if (side > 0 and d_lo >= -100.0 * tol) or (side < 0 and d_hi <= 100.0 * tol):
+            # G-buffer positions on the plane itself carry float32 interpolation error (a few ulps): 1e-5 of
+            # the scale. More would take a receiver just beyond it (a plane 1e-4 m above the ground) as on it.
+            if (side > 0 and d_lo >= -10.0 * tol) or (side < 0 and d_hi <= 10.0 * tol):
                 continue
         keep.append(index)
     if not keep:

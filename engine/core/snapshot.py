@@ -171,17 +171,23 @@ class SceneSnapshot:
         np.maximum.at(out[:, 1], ids, np.maximum.reduceat(hi, starts))
         return out
 
+    def _drawn_triangles(self):
+        """The triangles that draw something (finite, non-zero area) in float64: corners (T, 3, 3), normals
+        (T, 3, unnormalised, twice the area), areas ×2 (T,), object ids (T,)."""
+        p = self.positions.astype(np.float64)
+        with np.errstate(invalid="ignore", over="ignore"):
+            normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+            area = np.linalg.norm(normal, axis=1)
+        valid = np.isfinite(area) & (area > 0.0)
+        return p[valid], normal[valid], area[valid], self.object_id[valid]
+
     def flat_objects(self, limit: int = 16) -> dict:
         """Objects whose triangles all lie in one plane (a floor at any tilt, a flattened object), the
         `limit` largest: index → (unit normal, offset) of the plane n·p = offset. A flat object shadows only
         what lies beyond its plane as seen from the light (lightview.shadowing_caster_bounds)."""
         if self.triangle_count == 0 or not self.objects:
             return {}
-        p = self.positions.astype(np.float64)
-        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        area = np.linalg.norm(normal, axis=1)
-        valid = np.isfinite(area) & (area > 0.0)
-        p, normal, ids, area = p[valid], normal[valid], self.object_id[valid], area[valid]
+        p, normal, area, ids = self._drawn_triangles()
         weight = np.bincount(ids, area, len(self.objects))
         tol = 1e-6 * max(float(np.abs(p).max()) if p.size else 1.0, 1.0)
         out = {}
@@ -207,11 +213,7 @@ class SceneSnapshot:
         surface lies on the region's boundary."""
         if self.triangle_count == 0:
             return {}
-        p = self.positions.astype(np.float64)
-        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        area = np.linalg.norm(normal, axis=1)
-        valid = np.isfinite(area) & (area > 0.0)
-        p, normal, ids, area = p[valid], normal[valid], self.object_id[valid], area[valid]
+        p, normal, area, ids = self._drawn_triangles()
         tol = 1e-4 * max(float(np.abs(p).max()) if p.size else 1.0, 1.0)
         counts = np.bincount(ids, minlength=len(self.objects))
         out = {}
