@@ -93,7 +93,9 @@ class AveragedMaps(Technique):
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
         samples = []                        # (view, sample position, emission axis) per light sample
-        for offset in offsets:
+        for i, offset in enumerate(offsets):
+            if i % 64 == 0:
+                frame.progress.check()      # thousands of views take a while to fit: stay cancellable
             emit = light.direction
             if light.kind == SUN:
                 tilted = tilted_sun(light, offset)
