@@ -8,7 +8,7 @@ from penumbra.engine.gpu import programs
 from penumbra.engine.core.settings import RenderSettings
 from penumbra.engine.techniques import TECHNIQUES
 
-from penumbra.tests.synthetic import floating_plane
+from penumbra.tests.synthetic import floating_plane, quad
 
 
 def ground_points(snap):
@@ -203,13 +203,12 @@ def test_the_gpu_is_synchronised_only_when_stage_times_are_asked(monkeypatch):
 
 
 def test_layered_depth_maps_equal_one_map_per_view():
-    """REFERENCE draws a batch of sample maps in one layered pass (techniques/averaged.py render_layers);
+    """REFERENCE draws a batch of sample maps in one layered pass (Frame.render_depth_layers);
     each layer must hold what a depth map of that view alone holds, also for views of different sizes
     (a smaller map fills its layer's lower-left corner)."""
     from penumbra.engine.core import lightview
     from penumbra.engine.gpu.context import GpuWorker
     from penumbra.engine.gpu.frame import Frame
-    from penumbra.engine.techniques.averaged import render_layers
     snap = floating_plane(32)
     light = snap.lights[0]
     receivers = (np.array([-4.0, -4.0, 0.0]), np.array([4.0, 4.0, 0.0]))
@@ -220,7 +219,7 @@ def test_layered_depth_maps_equal_one_map_per_view():
     def job(worker):
         frame = Frame(worker, snap, RenderSettings())
         try:
-            layers = render_layers(frame, views)
+            layers = frame.render_depth_layers(views)
             array = np.frombuffer(layers.read(), np.float32).reshape(len(views), layers.height, layers.width)
             single = [frame.read(frame.render_depth_map(v))[..., 0].copy() for v in views]
             return array.copy(), single
@@ -232,3 +231,42 @@ def test_layered_depth_maps_equal_one_map_per_view():
         h, w = m.shape
         assert (m < 1e9).any(), "the occluder must be in every map"
         np.testing.assert_array_equal(array[k, :h, :w], m)
+
+
+def test_casters_outside_a_light_view_are_not_drawn_into_it():
+    """Frame.rasterise leaves out objects whose box lies wholly outside the view's clip volume; the map
+    is the same as with every object drawn."""
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    from penumbra.engine.core import lightview
+    from penumbra.engine.core.snapshot import ObjectInfo
+    from dataclasses import replace
+    base = floating_plane(32)
+    far = quad((30.0, 30.0, 1.0), 0.5)             # a third object far outside the light's view
+    snap = replace(base, positions=np.concatenate([base.positions, far]),
+                   normals=np.concatenate([base.normals, np.zeros_like(far) + (0, 0, 1)]),
+                   object_id=np.concatenate([base.object_id, [2, 2]]).astype(np.int32),
+                   albedo=np.concatenate([base.albedo, np.full((2, 3), 0.8, np.float32)]),
+                   objects=[*base.objects, ObjectInfo("Far")])
+    receivers = (np.array([-4.0, -4.0, 0.0]), np.array([4.0, 4.0, 0.0]))
+    view = lightview.fit(snap.lights[0], receivers, (np.array([-0.5, -0.5, 1.0]), np.array([0.5, 0.5, 1.0])), 64)
+    drawn = []
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings())
+        try:
+            inside = frame._objects_in_frustum(view.view_proj)
+            original = frame.geometry.render
+            frame.geometry.render = lambda ctx, prog, role, objects=None, **kw: (drawn.append(objects),
+                                                                                 original(ctx, prog, role, objects, **kw))
+            culled = frame.read(frame.render_depth_map(view))[..., 0].copy()
+            frame.geometry.render = original
+            frame._objects_in_frustum = lambda view_proj: None
+            full = frame.read(frame.render_depth_map(view))[..., 0].copy()
+            return inside, culled, full
+        finally:
+            frame.release()
+    inside, culled, full = GpuWorker.get().submit(job).result()
+    assert inside == frozenset({0, 1}) and drawn == [frozenset({0, 1})]
+    np.testing.assert_array_equal(culled, full)
+    assert (culled < 1e9).any()

@@ -17,6 +17,7 @@ from .multisample import (GBUFFER_NAMES, MSAA_BYTES_PER_PIXEL, MSAA_SAMPLES, Edg
 from .programs import bind_samplers, mat_uniform, program, set_uniforms
 from .state import gl_state
 
+MAX_DEPTH_LAYERS = 32       # render_depth_layers: geometry-shader invocations, one per layer (GL guarantees 32)
 _DTYPE_BYTES = {"f1": 1, "u1": 1, "i1": 1, "f2": 2, "u2": 2, "i2": 2, "f4": 4, "u4": 4, "i4": 4}
 
 
@@ -308,11 +309,38 @@ class Frame:
                             **(uniforms or {})})
         if samplers:
             bind_samplers(prog, samplers)
+        inside = self._objects_in_frustum(view_proj)    # objects wholly outside the view are not drawn
         with gl_state(ctx, depth_test=True, cull=False, blend=False, depth_func=">" if farthest else "<"):
             for objects, extra in draws:
+                if inside is not None:
+                    objects = inside if objects is None else objects & inside
+                    if not objects:
+                        continue
                 set_uniforms(prog, extra)
                 self.geometry.render(ctx, prog, role, objects, position_only=True)
         return tex
+
+    def _objects_in_frustum(self, view_proj):
+        """Indices of the objects whose world box meets the clip volume of `view_proj`, or None when every
+        object does (draw everything, as one draw). A box with all 8 corners beyond one clip plane holds no
+        triangle that could reach a texel, so leaving it out changes no texel."""
+        bounds = np.asarray(self.geometry.object_bounds(), float)
+        if bounds.size == 0:
+            return None
+        lo, hi = bounds[:, 0], bounds[:, 1]
+        empty = ~np.all(np.isfinite(lo) & np.isfinite(hi), axis=1)      # objects with no triangles
+        lo, hi = np.where(empty[:, None], 0.0, lo), np.where(empty[:, None], 0.0, hi)
+        pick = np.array([[(c >> a) & 1 for a in range(3)] for c in range(8)], bool)      # the 8 corners
+        corners = np.where(pick[None], hi[:, None, :], lo[:, None, :])                   # (N, 8, 3)
+        clip = np.concatenate([corners, np.ones(corners.shape[:2] + (1,))], axis=2) @ np.asarray(view_proj).T
+        w = clip[..., 3]
+        outside = np.zeros(len(bounds), bool)
+        for axis in range(3):
+            outside |= np.all(clip[..., axis] > w, axis=1) | np.all(clip[..., axis] < -w, axis=1)
+        outside &= ~empty
+        if not outside.any():
+            return None
+        return frozenset(int(i) for i in np.flatnonzero(~outside & ~empty))
 
     def render_depth_map(self, view: LightView, target=None):
         """Linear light depth of the casters seen from `view`, as an R32F texture (NO_OCCLUDER where empty).
@@ -328,6 +356,33 @@ class Frame:
             return target[0]
         prog = program(self.worker, "common/depth.vert", "common/depth.frag")
         return self.rasterise(target, prog, view.view, view.view_proj)
+
+    def render_depth_layers(self, views):
+        """Depth maps of the casters from each of `views` (at most MAX_DEPTH_LAYERS) as the layers of one
+        R32F texture array (the largest view's size; a smaller map fills its layer's lower-left corner), in
+        one draw: common/depth_layers.geom sends each triangle to every layer, and MIN blending keeps the
+        nearest linear depth (NO_OCCLUDER where empty), texel for texel what render_depth_map gives."""
+        w, h = max(v.width for v in views), max(v.height for v in views)
+        maps = self.texture_array((w, h, len(views)), 1)
+        fbo = self.framebuffer([maps])
+        fbo.use()
+        fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0)
+        if not self.geometry.has_casters:
+            return maps
+        rec = np.zeros((len(views), 36), np.float32)    # depth_layers.geom's LayerView structs (std430)
+        for k, v in enumerate(views):
+            rec[k, 0:16] = np.asarray(v.view, np.float32).T.ravel()
+            rec[k, 16:32] = np.asarray(v.view_proj, np.float32).T.ravel()
+            rec[k, 32:34] = (v.width / w, v.height / h)
+        prog = program(self.worker, "common/depth_layers.vert", "common/depth.frag",
+                       geometry="common/depth_layers.geom", defines={"MAX_LAYERS": MAX_DEPTH_LAYERS})
+        layer_views = self.buffer(rec.tobytes())
+        layer_views.bind_to_storage_buffer(0)
+        set_uniforms(prog, {"u_count": len(views)})
+        with gl_state(self.ctx, depth_test=False, cull=False, minimum=True):
+            self.geometry.render(self.ctx, prog, "caster", position_only=True)
+        self.give_back(layer_views)
+        return maps
 
     def new_depth_target(self, view: LightView):
         """A private depth-map target, for structures that must outlive the next render_depth_map call."""

@@ -15,6 +15,7 @@ from ..core import lightview
 from ..core.shading import spot_uniforms
 from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE, WEIGHT_SUN
 from ..core.snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
+from ..gpu.frame import MAX_DEPTH_LAYERS
 from .base import MAP_SIZE_SWEEP, Option, Technique
 
 
@@ -134,7 +135,9 @@ class AveragedMaps(Technique):
         true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
         samples = []                        # (view, sample position, emission axis) per light sample
-        for offset in offsets:
+        for i, offset in enumerate(offsets):
+            if i % 64 == 0:
+                frame.progress.check()      # thousands of views take a while to fit: stay cancellable
             emit = light.direction
             if light.kind == SUN:
                 tilted = tilted_sun(light, offset)
@@ -149,13 +152,13 @@ class AveragedMaps(Technique):
             samples.append((view, sample_world, emit))
         # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
         largest = max(v.width * v.height for v, _, _ in samples)
-        batch = int(min(MAX_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
+        batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
         done = 0
         for first in range(0, len(samples), batch):
             frame.progress.check()
             part = samples[first:first + batch]
             with frame.timings.stage("shadow_map"):
-                maps = render_layers(frame, [v for v, _, _ in part])
+                maps = frame.render_depth_layers([v for v, _, _ in part])
             with frame.timings.stage("visibility"):
                 records = frame.buffer(_sample_records(part))
                 frame.dispatch("averaged/accumulate.comp", {
@@ -169,7 +172,6 @@ class AveragedMaps(Technique):
         frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})
 
 
-MAX_LAYERS = 32                 # layers per batch: geometry-shader invocations (GL guarantees 32)
 BATCH_BYTES = 64 << 20          # at most this much texture array per batch
 
 
@@ -184,33 +186,3 @@ def _sample_records(part) -> bytes:
         rec[k, 24:26] = np.array(u["u_map_size"], np.int32).view(np.float32)
         rec[k, 28:31], rec[k, 32:35] = position, emit
     return rec.tobytes()
-
-
-def render_layers(frame, views):
-    """Depth maps of the casters from each of `views` as the layers of one R32F texture array (the largest
-    view's size; a smaller map fills its lower-left corner), in one draw: averaged/layers.geom sends each
-    triangle to every layer, MIN blending keeps the nearest linear depth (NO_OCCLUDER where empty)."""
-    from ..core.shader_constants import NO_OCCLUDER
-    from ..gpu.programs import program, set_uniforms
-    from ..gpu.state import gl_state
-    w, h = max(v.width for v in views), max(v.height for v in views)
-    maps = frame.texture_array((w, h, len(views)), 1)
-    fbo = frame.framebuffer([maps])
-    fbo.use()
-    fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0)
-    if not frame.geometry.has_casters:
-        return maps
-    rec = np.zeros((len(views), 36), np.float32)
-    for k, v in enumerate(views):
-        rec[k, 0:16] = np.asarray(v.view, np.float32).T.ravel()
-        rec[k, 16:32] = np.asarray(v.view_proj, np.float32).T.ravel()
-        rec[k, 32:34] = (v.width / w, v.height / h)
-    prog = program(frame.worker, "averaged/layers.vert", "common/depth.frag", geometry="averaged/layers.geom",
-                   defines={"MAX_LAYERS": MAX_LAYERS})
-    layer_views = frame.buffer(rec.tobytes())
-    layer_views.bind_to_storage_buffer(0)
-    set_uniforms(prog, {"u_count": len(views)})
-    with gl_state(frame.ctx, depth_test=False, cull=False, minimum=True):
-        frame.geometry.render(frame.ctx, prog, "caster", position_only=True)
-    frame.give_back(layer_views)
-    return maps

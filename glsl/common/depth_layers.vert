@@ -1,5 +1,5 @@
-// REFERENCE's layered depth pass: world positions to the geometry shader, which projects them into each
-// sample's map (averaged/layers.geom).
+// Layered depth pass (Frame.render_depth_layers): world positions to the geometry shader, which projects
+// them into each view's layer (common/depth_layers.geom).
 in vec3 in_position;
 
 uniform mat4 u_model = mat4(1.0);

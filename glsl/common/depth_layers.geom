@@ -1,7 +1,8 @@
-// REFERENCE's layered depth pass: each triangle drawn once per light sample of the batch, into that sample's
-// layer of a texture array (one geometry-shader invocation per layer), as common/depth.vert would draw it
-// into the sample's own map. A layer's map may be smaller than the array: `scale` (its size over the array's)
-// maps its clip square onto its corner of the layer; 1 leaves the position exactly as depth.vert's.
+// Layered depth pass (Frame.render_depth_layers): each triangle drawn once per view of the batch (REFERENCE's
+// light samples), into that view's layer of a texture array (one geometry-shader invocation per layer), as
+// common/depth.vert would draw it into the view's own map. A layer's map may be smaller than the array:
+// `scale` (its size over the array's) maps its clip square onto its corner of the layer; 1 leaves the
+// position exactly as depth.vert's.
 layout(triangles, invocations = MAX_LAYERS) in;
 layout(triangle_strip, max_vertices = 3) out;
 
