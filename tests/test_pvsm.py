@@ -229,6 +229,36 @@ def test_adaptive_stays_close_to_the_closed_form(plane):
     assert err[on_ground & (exact < 0.99)].mean() < 0.01
 
 
+def _close_to_the_edge(light_size):
+    """The parallel planes seen from under the occluder, close to the shadow's edge: the ground fills the
+    image, so its pixels ask for texels finer than a 64² low-resolution map's."""
+    from penumbra.engine.measure import stress
+    from penumbra.engine.measure.studies.pvsm import plane_exact, ground_hits
+    snap = stress.plane_scene(light_size=light_size)
+    snap = replace(snap, camera=stress.camera(eye=(0.2, -1.3, 0.5), target=(0.3, 0.3, 0.0), fov=40.0, size=SIZE))
+    exact = plane_exact(ground_hits(snap.camera, SIZE, SIZE)[:, :, 0], light_half=light_size / 2.0)
+    return snap, exact
+
+
+@pytest.mark.parametrize("tile", [256, 64])
+def test_predicted_tiles_refine_where_pixels_need_it(tile):
+    """A hard-edged shadow seen close up: the prediction asks for finer tiles than the 64² low-resolution map,
+    so adaptive tiles beat that map alone and come close to a fixed map 4× finer — with few tiles or many of
+    mixed levels alike."""
+    snap, exact = _close_to_the_edge(0.05)
+
+    def error(result):
+        v = _visibility(result)
+        m = (exact < 0.99) | (v < 0.99)
+        return np.abs(v - exact)[m].mean()
+    coarse, fine = error(_render(snap, shadow_map_size=64)), error(_render(snap, shadow_map_size=256))
+    tiled = _adaptive(snap, shadow_map_size=64, pvsm_tile_size=tile)
+    assert max(_tiles(tiled)["tile_levels"]) >= 2
+    if tile == 64:
+        assert _tiles(tiled)["tiles"] >= 4 and len(_tiles(tiled)["tile_levels"]) >= 2
+    assert error(tiled) < 0.5 * coarse and error(tiled) < 4.0 * fine, (error(tiled), coarse, fine)
+
+
 def test_adaptive_fully_lit_skip_never_darkens_a_lit_pixel(plane):
     snap, pts, exact = plane
     with_skip = _adaptive(snap, shadow_map_size=256, pvsm_skip_lit=True, pvsm_tile_size=64)
