@@ -293,3 +293,16 @@ def test_technique_reaches_gl_only_through_the_frame():
     names = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
     raw = {"ctx", "framebuffer", "enable", "disable", "viewport", "depth_texture", "blend_func", "use"}
     assert not names & raw, names & raw
+
+
+def test_conservative_search_map_at_the_search_size(plane, monkeypatch):
+    """SEARCH_MAP switched to the conservative map (§5.2 step 2): it is rendered at pvsm_search_size itself
+    (a 256² texel map beside the 1024² filtering map) and the closed form holds as with the hard map."""
+    from penumbra.engine.structures.conservative_map import CONSERVATIVE_MAP
+    monkeypatch.setattr(pvsm, "SEARCH_MAP", CONSERVATIVE_MAP)
+    snap, pts, exact = plane
+    result = _render(snap, pvsm_weighting="UNIFORM", pvsm_search_size=256, collect_stats=True)
+    # R32F min depth + RGBA32UI texels + the 256-entry slope table, at most 256² texels each
+    assert result.stats["structure_bytes"][CONSERVATIVE_MAP] <= 256 * 256 * 20 + 256 * 4
+    err, on_ground = _ground_error(snap, pts, exact, result)
+    assert err[on_ground & (exact < 0.99)].mean() < 0.01
