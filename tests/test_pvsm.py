@@ -229,6 +229,36 @@ def test_adaptive_stays_close_to_the_closed_form(plane):
     assert err[on_ground & (exact < 0.99)].mean() < 0.01
 
 
+def _close_to_the_edge(light_size):
+    """The parallel planes seen from under the occluder, close to the shadow's edge: the ground fills the
+    image, so its pixels ask for texels finer than a 64² low-resolution map's."""
+    from penumbra.engine.measure import stress
+    from penumbra.engine.measure.studies.pvsm import plane_exact, ground_hits
+    snap = stress.plane_scene(light_size=light_size)
+    snap = replace(snap, camera=stress.camera(eye=(0.2, -1.3, 0.5), target=(0.3, 0.3, 0.0), fov=40.0, size=SIZE))
+    exact = plane_exact(ground_hits(snap.camera, SIZE, SIZE)[:, :, 0], light_half=light_size / 2.0)
+    return snap, exact
+
+
+@pytest.mark.parametrize("tile", [256, 64])
+def test_predicted_tiles_refine_where_pixels_need_it(tile):
+    """A hard-edged shadow seen close up: the prediction asks for finer tiles than the 64² low-resolution map,
+    so adaptive tiles beat that map alone and come close to a fixed map 4× finer — with few tiles or many of
+    mixed levels alike."""
+    snap, exact = _close_to_the_edge(0.05)
+
+    def error(result):
+        v = _visibility(result)
+        m = (exact < 0.99) | (v < 0.99)
+        return np.abs(v - exact)[m].mean()
+    coarse, fine = error(_render(snap, shadow_map_size=64)), error(_render(snap, shadow_map_size=256))
+    tiled = _adaptive(snap, shadow_map_size=64, pvsm_tile_size=tile)
+    assert max(_tiles(tiled)["tile_levels"]) >= 2
+    if tile == 64:
+        assert _tiles(tiled)["tiles"] >= 4 and len(_tiles(tiled)["tile_levels"]) >= 2
+    assert error(tiled) < 0.5 * coarse and error(tiled) < 4.0 * fine, (error(tiled), coarse, fine)
+
+
 def test_adaptive_fully_lit_skip_never_darkens_a_lit_pixel(plane):
     snap, pts, exact = plane
     with_skip = _adaptive(snap, shadow_map_size=256, pvsm_skip_lit=True, pvsm_tile_size=64)
@@ -263,3 +293,16 @@ def test_technique_reaches_gl_only_through_the_frame():
     names = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
     raw = {"ctx", "framebuffer", "enable", "disable", "viewport", "depth_texture", "blend_func", "use"}
     assert not names & raw, names & raw
+
+
+def test_conservative_search_map_at_the_search_size(plane, monkeypatch):
+    """SEARCH_MAP switched to the conservative map (§5.2 step 2): it is rendered at pvsm_search_size itself
+    (a 256² texel map beside the 1024² filtering map) and the closed form holds as with the hard map."""
+    from penumbra.engine.structures.conservative_map import CONSERVATIVE_MAP
+    monkeypatch.setattr(pvsm, "SEARCH_MAP", CONSERVATIVE_MAP)
+    snap, pts, exact = plane
+    result = _render(snap, pvsm_weighting="UNIFORM", pvsm_search_size=256, collect_stats=True)
+    # R32F min depth + RGBA32UI texels + the 256-entry slope table, at most 256² texels each
+    assert result.stats["structure_bytes"][CONSERVATIVE_MAP] <= 256 * 256 * 20 + 256 * 4
+    err, on_ground = _ground_error(snap, pts, exact, result)
+    assert err[on_ground & (exact < 0.99)].mean() < 0.01

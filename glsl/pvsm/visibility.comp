@@ -344,7 +344,7 @@ int filter_level(mat2 phi, mat2 h, out float n_screen) {
 
 #if MODE == 1
 // Step 4: the texel size (search-map texels) this pixel's kernel needs — the cap's, ρ's (§5.1, Eq. 5) and
-// no finer than the pixel's own footprint on the map, which no viewer resolves — min-blended into every tile
+// no finer than half the pixel's own footprint on the map — min-blended into every tile
 // grid cell its kernel's bounding box covers. The paper splats one point, into the receiver's own cell; a
 // kernel reaching a cell that no pixel projects onto would then read a map that was never rendered. The box
 // goes into the pyramid level where it spans at most 2×2 cells (a coarse cell's value holds for the cells
@@ -353,7 +353,9 @@ float predicted_texel(mat2 phi, mat2 h) {
     float r = 2.0 * max(abs(h[0].x), h[1].y + abs(h[0].y)) / float(u_cap);
     float n_screen;
     if (u_rho != 0) r = max(r, perceptual_texel(phi, h, n_screen));
-    r = max(r, 2.0 * sqrt(abs(determinant(phi))));
+    // The footprint's floor is its half axis (half a pixel): what ρ gives a kernel no wider than the
+    // footprint (2h/ρ(1) ≈ 1.1 h); a whole pixel per texel shifts hard edges by up to half a pixel.
+    r = max(r, sqrt(abs(determinant(phi))));
     return r > 0.0 ? r : 1e-30;         // a degenerate kernel and footprint (or NaN): the finest level
 }
 
