@@ -20,7 +20,13 @@ from penumbra.tests.test_pipeline import _ground_depth, exact_area_visibility, g
 BP = "BACKPROJECTION"
 
 
+# These tests check the 2007 paper: its configuration unless a test asks otherwise (the technique's defaults
+# add the 2008 paper's microquads, YSM, blending and over-precision fix; tests/test_quality_scalability.py).
+PAPER_2007 = {"bp_primitive": "MICROPATCH", "bp_refinement": "MSSM", "bp_blend": False, "bp_query_growth": False}
+
+
 def bp(**options) -> RenderSettings:
+    options = {**PAPER_2007, **options}
     size = options.pop("shadow_map_size", 1024)
     debug = options.pop("debug_passes", False)
     return RenderSettings(technique=BP, shadow_map_size=size, debug_passes=debug).with_(**options)

@@ -34,14 +34,18 @@ def _rotated_square(center, half, yaw, pitch):
     return np.array([[p[0], p[1], p[2]], [p[0], p[2], p[3]]])
 
 
-@pytest.fixture(scope="module")
-def tilted():
+def tilted_scene():
     """Two turned, tilted plates at different heights over the ground under a 1 m square light: the map's
     texels and their min-aggregates do not line up with the occluders' edges."""
     parts = [("Ground", stress.quad((0, 0, 0), 4.0), True, True),
              ("Plate", _rotated_square((0.0, 0.0, 1.0), 0.55, 0.5, 0.35), True, True),
              ("Small", _rotated_square((0.6, 0.3, 1.7), 0.2, -0.3, 0.0), True, True)]
     return stress.assemble(parts, [stress.area_light((0.0, 0.0, 3.0), size=1.0)], stress.camera(size=72), "tilted")
+
+
+@pytest.fixture(scope="module")
+def tilted():
+    return tilted_scene()
 
 
 def _vis(snap, settings):
@@ -141,9 +145,14 @@ def test_built_structures_report_table_1_memory_at_1024():
 
 
 def test_ysm_matches_mssm_where_the_part_is_the_whole_map(tilted):
-    """At a 256² map the YSM's MSSM part is the full map (n = 1): the same bounds as the MSSM, so the same
-    image; at 512² it is coarser (n = 2) but close."""
-    assert np.array_equal(_vis(tilted, bp(256, bp_refinement="MSSM")), _vis(tilted, bp(256, bp_refinement="YSM")))
+    """At a 256² map the YSM's MSSM part is the full map (n = 1): with one level per pixel the same image as
+    the MSSM (blended, the two programs' float rounding of ℓ differs in the last bits). Not the same classes:
+    the YSM proves ~150 more penumbra-edge pixels lit that the MSSM backprojects to V = 1 (cause not found; the
+    visibility is identical there). At 512² it is coarser (n = 2) but close."""
+    one = {"bp_blend": False}
+    assert np.array_equal(_vis(tilted, bp(256, bp_refinement="MSSM", **one)),
+                          _vis(tilted, bp(256, bp_refinement="YSM", **one)))
+    assert np.abs(_vis(tilted, bp(256, bp_refinement="MSSM")) - _vis(tilted, bp(256, bp_refinement="YSM"))).max() < 1e-3
     a, b = _vis(tilted, bp(512, bp_refinement="MSSM")), _vis(tilted, bp(512, bp_refinement="YSM"))
     assert np.abs(a - b).mean() < 0.01
 
@@ -175,7 +184,7 @@ def test_blending_lowers_the_seam_metric(tilted):
     own is smaller with blending."""
     ref = _vis(tilted, bp(bp_budget_map="UNBOUNDED"))
     for b in (5, 9):
-        r0, _, level0, active0 = _stats(tilted, bp(bp_budget=b))
+        r0, _, level0, active0 = _stats(tilted, bp(bp_budget=b, bp_blend=False))
         v1 = _vis(tilted, bp(bp_budget=b, bp_blend=True))
         v0 = r0.passes["Visibility"][..., 0]
         s0, s1 = seam_metric(v0, ref, level0, active0), seam_metric(v1, ref, level0, active0)
@@ -201,7 +210,7 @@ def test_over_precision_fix_backprojects_more_pixels(tilted):
     backproject (the classification is no longer more precise than the level can shade). Not a strict
     superset: the grown area's bounds come from other (coarser) samples, which can decide a few pixels of the
     penumbra's inner edge the other way."""
-    _, plain, _, a0 = _stats(tilted, bp(bp_budget=5))
+    _, plain, _, a0 = _stats(tilted, bp(bp_budget=5, bp_query_growth=False))
     _, grown, _, a1 = _stats(tilted, bp(bp_budget=5, bp_query_growth=True))
     assert grown["share_backprojected"] > plain["share_backprojected"]
 
@@ -227,3 +236,17 @@ def test_stress_cases_pass_with_the_new_settings(overrides):
     rows = stress.run([BP], [c for c in cases if c in stress.CASE_BY_NAME], overrides)
     bad = [r for r in rows if r["status"] not in ("ok", "xfail")]
     assert not bad, stress.format_table(bad)
+
+
+# ------------------------------------------------------------------------------------------------------------
+# the random-scene test (engine/measure/fuzz.py) with the new settings
+# ------------------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", [0, 15, 19])
+def test_random_scenes_within_bound_with_the_2008_settings(seed):
+    """The fuzz test's fixed cheap seeds (tests/test_fuzz.py) under microrects + YSM + blending + the
+    over-precision fix: BACKPROJECTION stays within its bound against Cycles."""
+    pytest.importorskip("bpy")
+    from penumbra.engine.measure import fuzz
+    rows = fuzz.score_scene(seed, [BP], overrides=NEW_SETTINGS[0])
+    assert all(r.status == "ok" for r in rows), "\n".join(fuzz.format_row(r) for r in rows)

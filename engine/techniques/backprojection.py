@@ -155,13 +155,13 @@ class Backprojection(Technique):
                    "directions; textured lights through per-sample colours")
     needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM, YSM, MICRORECTS)  # all it may use; needs_for picks
     options = (
-        Option("bp_primitive", "MICROPATCH", "Micro-occluders", "How depth-map texels become occluders",
+        Option("bp_primitive", "MICROQUAD", "Micro-occluders", "How depth-map texels become occluders",
                items=PRIMITIVES),
         Option("bp_gap_fill", True, "Gap filling",
                "Micropatches: extend each patch to its left/bottom occluding neighbour (GBP06)"),
         Option("bp_accumulation", "BITMASK_16J", "Occlusion", "How backprojected occlusion is combined",
                items=ACCUMULATIONS),
-        Option("bp_refinement", "MSSM", "Search refinement",
+        Option("bp_refinement", "YSM", "Search refinement",
                "Narrow the search area and classify fully lit / umbra pixels (§5)", items=REFINEMENTS),
         Option("bp_budget", 16, "Budget", "At most b×b micro-occluders per pixel and depth layer; larger search "
                "areas use a coarser level (with a border falloff: b at the image centre)", min=2, max=64),
@@ -169,10 +169,10 @@ class Backprojection(Technique):
                "the 2008 paper)", items=BUDGET_MAPS),
         Option("bp_budget_border", 5, "Border budget", "Budget at the left/right image borders (border falloff)",
                min=2, max=64),
-        Option("bp_blend", False, "Level blending", "Fractional level from area and budget, smoothed in an LOQ "
+        Option("bp_blend", True, "Level blending", "Fractional level from area and budget, smoothed in an LOQ "
                "map (11×11 bilateral, stops at depth discontinuities), visibility of the two nearest levels "
                "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
-        Option("bp_query_growth", False, "Over-precision fix", "Grow the queried area to the support of the "
+        Option("bp_query_growth", True, "Over-precision fix", "Grow the queried area to the support of the "
                "micro-occluders of the level it will use before classifying (2008, §6)"),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),

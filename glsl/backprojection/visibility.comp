@@ -529,7 +529,9 @@ int query_level(ivec2 lo, ivec2 hi, float b) {
 #if LOQ == LOQ_INTEGER
     return integer_level(lo, hi, b);
 #else
-    return int(ceil(fractional_level(lo, hi, b)));
+    // ℓ is a whole number exactly when the area's side is b − 1 − extra times a power of two; log2's last-bit
+    // rounding must not push such a pixel one level up (separately compiled passes must agree).
+    return int(ceil(fractional_level(lo, hi, b) - 1e-4));
 #endif
 }
 

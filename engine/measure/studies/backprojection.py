@@ -26,7 +26,9 @@ from ...core.arguments import CYCLES_SAMPLES_RANGE, Parser, add_alias, ranged
 from ...core.files import write_atomic
 from ...core.settings import RenderSettings
 
-DEFAULT = {"bp_accumulation": "BITMASK_16J", "bp_primitive": "MICROPATCH", "bp_refinement": "MSSM", "bp_budget": 16}
+# The 2007 paper's configuration (the technique's own defaults now include the 2008 paper's blending and YSM).
+DEFAULT = {"bp_accumulation": "BITMASK_16J", "bp_primitive": "MICROPATCH", "bp_refinement": "MSSM", "bp_budget": 16,
+           "bp_blend": False, "bp_query_growth": False}
 
 
 def combinations(quick: bool = False) -> list[dict]:
