@@ -80,3 +80,16 @@ def test_sphere_light_ball_samples_project_to_a_uniform_disk_in_every_direction(
         rho2 = np.sum((p - np.outer(p @ d, d)) ** 2, axis=1)
         counts = np.histogram(rho2, bins=8, range=(0.0, 1.0))[0]      # uniform disk: ρ² uniform
         assert np.abs(counts / counts.mean() - 1.0).max() < 0.05, counts
+
+
+def test_a_low_area_light_over_the_ground_is_on_one_side_of_it():
+    """The light's reach across a plane is its rectangle's support along the normal, not its half diagonal:
+    a 2.5 m square 1.74 m up, facing the horizon, reaches 1.25 m down and stays above the ground."""
+    elev = np.radians(5.0)
+    pos = (-20.0 * np.cos(elev), 0.0, 20.0 * np.sin(elev))
+    light = stress.area_light(pos, target=(0.0, 0.0, 0.0), size=2.5)
+    ground = np.array([0.0, 0.0, 1.0])
+    assert lightview._light_side(light, ground, 0.0) == 1.0
+    assert lightview._light_side(light, ground, 1.0) == 0.0        # a plane at 1 m: the square spans it
+    reach = float(lightview._light_reach(light, ground))
+    assert reach < 1.26 < 0.5 * np.hypot(2.5, 2.5)

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .snapshot import AREA, POINT, SPOT, SUN, Light
+from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 from .light_shape import penumbra_spread
 from .matrices import mat_uniform
 
@@ -336,7 +336,8 @@ def _light_inside(light: Light, normals: np.ndarray, offsets: np.ndarray) -> boo
     """Whether the whole light (its extent included) lies strictly inside the convex region n·p ≤ offset."""
     if light.kind == SUN:
         return False
-    return bool(np.all(normals @ np.asarray(light.position, float) - offsets < -max(_light_extent(light), 1e-9)))
+    return bool(np.all(normals @ np.asarray(light.position, float) - offsets < -np.maximum(
+        _light_reach(light, normals), 1e-9)))
 
 
 def _light_side(light: Light, normal: np.ndarray, offset: float) -> float:
@@ -346,14 +347,21 @@ def _light_side(light: Light, normal: np.ndarray, offset: float) -> float:
         towards = -float(np.dot(light.direction, normal))
         return 0.0 if abs(towards) <= np.sin(min(light.angle / 2.0, np.pi / 2)) else float(np.sign(towards))
     height = float(np.dot(light.position, normal)) - offset
-    return 0.0 if abs(height) <= _light_extent(light) else float(np.sign(height))
+    return 0.0 if abs(height) <= float(_light_reach(light, normal)) else float(np.sign(height))
 
 
-def _light_extent(light: Light) -> float:
-    """Farthest distance of any point of the light from its centre."""
-    if light.kind == AREA:
-        return 0.5 * float(np.hypot(light.size_x, light.size_y))
-    return float(light.radius)
+def _light_reach(light: Light, normals: np.ndarray) -> np.ndarray:
+    """How far the light's emitter reaches from its centre along each unit normal (…, 3): the support of
+    its rectangle or ellipse (an area light at 5° above the ground, 2.5 m wide, does not reach the ground
+    though its half diagonal exceeds its height), or its radius."""
+    if light.kind != AREA:
+        return np.full(np.shape(normals)[:-1], float(light.radius))
+    m = np.asarray(light.matrix, float)
+    along_x = np.abs(np.asarray(normals) @ m[:3, 0]) * light.size_x / 2.0
+    along_y = np.abs(np.asarray(normals) @ m[:3, 1]) * light.size_y / 2.0
+    if light.shape in (DISK, ELLIPSE):
+        return np.hypot(along_x, along_y)
+    return along_x + along_y
 
 
 def _map_shape(window, size: int) -> tuple[int, int]:

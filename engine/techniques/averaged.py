@@ -88,7 +88,7 @@ def _fills_ball(light: Light, view) -> bool:
     widest angle (1 − cos θ) against r over its near depth picks the smaller error: the disk for a narrow
     view (a spot's cone), the ball for a light whose receivers surround it (a room). A cube face keeps the
     ball: its axis is not the light frame's Z, across which the disk lies."""
-    if view.face is not None:
+    if view.face is not None or view.clamped:    # receivers all around the light: the ball
         return True
     t = float(np.max(np.abs(view.window)))
     foreshortening = 1.0 - 1.0 / float(np.hypot(1.0, t))
