@@ -230,14 +230,9 @@ def test_adaptive_stays_close_to_the_closed_form(plane):
 
 
 def _close_to_the_edge(light_size):
-    """The parallel planes seen from under the occluder, close to the shadow's edge: the ground fills the
-    image, so its pixels ask for texels finer than a 64² low-resolution map's."""
-    from penumbra.engine.measure import stress
-    from penumbra.engine.measure.studies.pvsm import plane_exact, ground_hits
-    snap = stress.plane_scene(light_size=light_size)
-    snap = replace(snap, camera=stress.camera(eye=(0.2, -1.3, 0.5), target=(0.3, 0.3, 0.0), fov=40.0, size=SIZE))
-    exact = plane_exact(ground_hits(snap.camera, SIZE, SIZE)[:, :, 0], light_half=light_size / 2.0)
-    return snap, exact
+    from penumbra.engine.measure.studies.pvsm import close_up_plane, ground_hits, plane_exact
+    snap = close_up_plane(light_size, SIZE)
+    return snap, plane_exact(ground_hits(snap.camera, SIZE, SIZE)[:, :, 0], light_half=light_size / 2.0)
 
 
 @pytest.mark.parametrize("tile", [256, 64])

@@ -195,13 +195,18 @@ def _plane_error(snap, size, light_size, r):
     return float(np.abs(v - exact)[m].mean()) if m.any() else 0.0
 
 
+def close_up_plane(light_size, size, name="plane_close"):
+    """The parallel planes seen from under the occluder, close to the shadow's edge: the ground fills the image,
+    so that its pixels ask for texels finer than a low-resolution map of the image's size (the default camera
+    sees 8 m of ground)."""
+    snap = stress.plane_scene(light_size=light_size, name=name)
+    return replace(snap, camera=stress.camera(eye=(0.2, -1.3, 0.5), target=(0.3, 0.3, 0.0), fov=40.0, size=size))
+
+
 def _light_rows(size, map_size, repeats, log, lights, configs, tag):
     rows = []
     for light_name, light_size in lights:
-        snap = stress.plane_scene(light_size=light_size, name=f"plane_{tag}_{light_name}")
-        # Close to the shadow's edge, under the occluder: the ground fills the image, so that its pixels ask for
-        # texels finer than the low-resolution map's (the default camera sees 8 m of ground in the image).
-        snap = replace(snap, camera=stress.camera(eye=(0.2, -1.3, 0.5), target=(0.3, 0.3, 0.0), fov=40.0, size=size))
+        snap = close_up_plane(light_size, size, f"plane_{tag}_{light_name}")
         for config, shadow_map, options in configs:
             s = RenderSettings(technique="PVSM", shadow_map_size=shadow_map, collect_stats=True).with_(**options)
             r, ms = _render(snap, s, repeats)
