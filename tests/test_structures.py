@@ -51,7 +51,8 @@ def _counting(monkeypatch):
 def test_options_decide_the_structures_and_each_is_built_once_per_light_view(monkeypatch):
     calls = _counting(monkeypatch)
     snap = floating_plane(32)
-    base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64)
+    # Micropatches read the hierarchy itself (the default microrects add their own structure, checked below).
+    base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64).with_(bp_primitive="MICROPATCH")
     r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=3))
     assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1}
     memory = r.stats["structure_bytes"]
@@ -65,6 +66,12 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     memory = r.stats["structure_bytes"]
     assert memory["hsm"] == 0                          # layer 0 reads the MSSM, which holds every level
     assert memory["mssm"] >= 2 * memory["depth_map"] * 6    # RG32F, one full-resolution layer per level
+    calls.clear()
+    r = pipeline.render(snap, base.with_(bp_refinement="YSM", bp_primitive="MICRORECT", bp_layers=2))
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "ysm": 1, "microrects": 1}
+    memory = r.stats["structure_bytes"]
+    assert memory["hsm"] == 8 * (64 * 64 * 4 - 1) // 3     # layer 1's pyramid only: the YSM holds layer 0's
+    assert memory["microrects"] == 2 * (4 + 16) * (64 * 64 * 4 - 1) // 3        # two layers, R32F + RGBA32F chains
 
 
 def test_ssm_structures_follow_its_options(monkeypatch):

@@ -155,7 +155,7 @@ class Backprojection(Technique):
                    "directions; textured lights through per-sample colours")
     needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM, YSM, MICRORECTS)  # all it may use; needs_for picks
     options = (
-        Option("bp_primitive", "MICROQUAD", "Micro-occluders", "How depth-map texels become occluders",
+        Option("bp_primitive", "MICRORECT", "Micro-occluders", "How depth-map texels become occluders",
                items=PRIMITIVES),
         Option("bp_gap_fill", True, "Gap filling",
                "Micropatches: extend each patch to its left/bottom occluding neighbour (GBP06)"),
