@@ -56,8 +56,7 @@ def build(frame, lc, part: int = YSM_PART):
         pyramid, _, padded = build_pyramid(frame, depth, w, h)
         tex = None
         if k > 0:
-            tex = frame.own_per_light(frame.ctx.texture_array((size[0], size[1], k), 2, dtype="f4"))
-            tex.filter = (0x2600, 0x2600)       # GL_NEAREST
+            tex = frame.texture_array_per_light((size[0], size[1], k), 2)     # GL_NEAREST, from the pool
             prog = program(frame.worker, compute="backprojection/mssm.comp", defines={"FROM_HSM": 1})
             pyramid.use(location=0)
             set_uniforms(prog, {"u_hsm": 0, "u_base": n - 1, "u_map_size": size})
