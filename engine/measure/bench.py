@@ -59,6 +59,20 @@ _SHORT = {"shadow_map_size": "map", "pcf_radius": "radius", "pcf_taps": "taps",
           "pcss_blocker_samples": "blocker", "pcss_filter_samples": "filter", "averaged_light_samples": "samples"}
 
 
+
+def _checked_choices(techniques, peers, known_techniques) -> tuple[list, tuple]:
+    """Technique identifiers (all when none are named) and peer names, each checked: a ValueError names
+    the unknown one and the valid choices."""
+    technique_ids = [t.upper() for t in techniques] if techniques else list(known_techniques)
+    for tid in technique_ids:
+        if tid not in known_techniques:
+            raise ValueError(f"unknown technique {tid!r}; choose from {', '.join(known_techniques)}")
+    peers = tuple(p.lower() for p in (peers or ()))
+    for p in peers:
+        if p not in PEERS:
+            raise ValueError(f"unknown peer {p!r}; choose from {', '.join(PEERS)}")
+    return technique_ids, peers
+
 def sweep_configs(identifier: str) -> list[dict]:
     """The configurations a --sweep runs for technique `identifier` (its declared `sweep`)."""
     from ..render.pipeline import get_technique
@@ -344,14 +358,7 @@ def run_bench(out_dir, *, scenes=None, techniques=None, sweep: bool = False, pee
     for name in scene_names:
         if name not in known:
             raise ValueError(f"unknown scene {name!r}; valid scenes: {', '.join(known)}")
-    technique_ids = [t.upper() for t in techniques] if techniques else list(TECHNIQUES)
-    for tid in technique_ids:
-        if tid not in TECHNIQUES:
-            raise ValueError(f"unknown technique {tid!r}; choose from {', '.join(TECHNIQUES)}")
-    peers = tuple(p.lower() for p in (peers or ()))
-    for p in peers:
-        if p not in PEERS:
-            raise ValueError(f"unknown peer {p!r}; choose from {', '.join(PEERS)}")
+    technique_ids, peers = _checked_choices(techniques, peers, TECHNIQUES)
     base = RenderSettings().with_(**(overrides or {}))
     plans = {tid: configurations(tid, base, sweep) for tid in technique_ids}   # validates every config early
     width, height = int(resolution[0]), int(resolution[1])
@@ -745,14 +752,7 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
     from ..render.viewport import coarse_settings
 
     stream = stream or sys.stderr
-    technique_ids = [t.upper() for t in techniques] if techniques else list(TECHNIQUES)
-    for tid in technique_ids:
-        if tid not in TECHNIQUES:
-            raise ValueError(f"unknown technique {tid!r}; choose from {', '.join(TECHNIQUES)}")
-    peers = tuple(p.lower() for p in (peers or ()))
-    for p in peers:
-        if p not in PEERS:
-            raise ValueError(f"unknown peer {p!r}; choose from {', '.join(PEERS)}")
+    technique_ids, peers = _checked_choices(techniques, peers, TECHNIQUES)
     if quick:
         repeats, cycles_samples = 1, 1
     grid = SCALING_QUICK if quick else {"sizes": SCALING_SIZES, "triangles": SCALING_TRIANGLES,

@@ -214,16 +214,21 @@ def _add_area_light(scene, location, target, size, *, reference_point=(0.0, 0.0,
 # The scenes
 # --------------------------------------------------------------------------------------------------
 
-def _build_plane(scene):
-    """A 1 m square plate parallel to a 1.5 m square light, halfway-ish down: the shadow is nearly all
-    penumbra (umbra only |x|, |y| < 0.38 m, penumbra out to 1.09 m) -- Atty et al.'s worst case."""
-    _add_ground(scene)
+def _plate_under_square_light(scene):
+    """`plane`'s plate, light and camera (also under `textured`'s checker ground)."""
     occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
     s = 0.5
     _mesh_object(scene, "Occluder", [(-s, -s, 0.8), (s, -s, 0.8), (s, s, 0.8), (-s, s, 0.8)],
                  [(0, 1, 2, 3)], occ)
     _add_area_light(scene, (0, 0, 2.5), (0, 0, 0), 1.5, reference_point=(1.2, 0.0, 0.0))
     _add_camera(scene, (0.0, -2.1, 2.0), (0.0, -0.2, 0.0), lens=35)
+
+
+def _build_plane(scene):
+    """A 1 m square plate parallel to a 1.5 m square light, halfway-ish down: the shadow is nearly all
+    penumbra (umbra only |x|, |y| < 0.38 m, penumbra out to 1.09 m) -- Atty et al.'s worst case."""
+    _add_ground(scene)
+    _plate_under_square_light(scene)
 
 
 def _build_suzanne(scene):
@@ -607,12 +612,7 @@ def _build_textured(scene):
                                                            repeats=20.0, angle=math.radians(20.0),
                                                            offset=(0.3, 0.1)))
     set_planar_uv(ground, scale=40.0)
-    occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
-    s = 0.5
-    _mesh_object(scene, "Occluder", [(-s, -s, 0.8), (s, -s, 0.8), (s, s, 0.8), (-s, s, 0.8)],
-                 [(0, 1, 2, 3)], occ)
-    _add_area_light(scene, (0, 0, 2.5), (0, 0, 0), 1.5, reference_point=(1.2, 0.0, 0.0))
-    _add_camera(scene, (0.0, -2.1, 2.0), (0.0, -0.2, 0.0), lens=35)
+    _plate_under_square_light(scene)
 
 
 SCENES: "OrderedDict[str, tuple[Builder, str]]" = OrderedDict([

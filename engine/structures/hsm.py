@@ -44,15 +44,24 @@ def build_pyramid(frame, depth, width: int, height: int):
     prog = program(frame.worker, compute="backprojection/hsm.comp")
     depth.use(location=0)
     set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
+    mip_chain(frame, prog, [tex], (pw, ph), levels)
+    return tex, levels, (pw, ph)
+
+
+def mip_chain(frame, prog, textures, padded, levels: int, extra=None) -> None:
+    """Run `prog` once per mip level, coarsest last: level l of texture i is bound as image i (write), level
+    l − 1 as image len(textures) + i (read); uniforms u_first, u_dst_size and `extra(l)` per level."""
+    pw, ph = padded
+    n = len(textures)
     for l_ in range(levels):
         size = (max(pw >> l_, 1), max(ph >> l_, 1))
-        tex.bind_to_image(0, read=False, write=True, level=l_)
-        if l_ > 0:
-            tex.bind_to_image(1, read=True, write=False, level=l_ - 1)
-        set_uniforms(prog, {"u_first": int(l_ == 0), "u_dst_size": size})
+        for i, tex in enumerate(textures):
+            tex.bind_to_image(i, read=False, write=True, level=l_)
+            if l_ > 0:
+                tex.bind_to_image(n + i, read=True, write=False, level=l_ - 1)
+        set_uniforms(prog, {"u_first": int(l_ == 0), "u_dst_size": size, **(extra(l_) if extra else {})})
         prog.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
         frame.ctx.memory_barrier()
-    return tex, levels, (pw, ph)
 
 
 @structure(HSM, requires=(PEELED_LAYERS,))

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..gpu.programs import program, set_uniforms
 from . import structure
-from .hsm import chain_bytes, padded_size
+from .hsm import chain_bytes, mip_chain, padded_size
 from .mssm import level_count
 from .peeled_layers import PEELED_LAYERS
 
@@ -49,17 +49,8 @@ def build_chain(frame, depth, width: int, height: int):
     prog = program(frame.worker, compute="backprojection/microrects.comp")
     depth.use(location=0)
     set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
-    for l_ in range(levels):
-        size = (max(pw >> l_, 1), max(ph >> l_, 1))
-        dtex.bind_to_image(0, read=False, write=True, level=l_)
-        etex.bind_to_image(1, read=False, write=True, level=l_)
-        if l_ > 0:
-            dtex.bind_to_image(2, read=True, write=False, level=l_ - 1)
-            etex.bind_to_image(3, read=True, write=False, level=l_ - 1)
-        src = (max(pw >> max(l_ - 1, 0), 1), max(ph >> max(l_ - 1, 0), 1))
-        set_uniforms(prog, {"u_first": int(l_ == 0), "u_dst_size": size, "u_src_size": src})
-        prog.run((size[0] + 7) // 8, (size[1] + 7) // 8, 1)
-        frame.ctx.memory_barrier()
+    mip_chain(frame, prog, [dtex, etex], (pw, ph), levels,
+              lambda l_: {"u_src_size": (max(pw >> max(l_ - 1, 0), 1), max(ph >> max(l_ - 1, 0), 1))})
     return dtex, etex, levels, (pw, ph)
 
 
