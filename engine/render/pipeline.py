@@ -172,12 +172,12 @@ def _lit_bounds(frame: Frame, irradiance, buffer):
 
 
 def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
-                     debug: dict):
+                     debug: dict, split: bool = False):
     """One light view: build the structures the technique declares, then its visibility into `out`. Returns
     the technique's coloured visibility texture, if it made one."""
     t = frame.timings
     lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms},
-                      frame.receiver_sides)
+                      frame.receiver_sides, split=split)
     memory = stats.setdefault("structure_bytes", {})    # per structure: the largest light view's
     for need in structures.plan(technique.needs_for(frame.settings)):    # what the technique declares, once
         with t.stage("shadow_map"):
@@ -235,7 +235,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         if casters is not None:
             view_debug: dict = {}
             rgb = _view_visibility(frame, technique, light, face_view, irradiance, receivers, casters, face_out,
-                                   stats, view_debug)
+                                   stats, view_debug, split=True)
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))

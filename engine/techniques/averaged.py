@@ -81,14 +81,15 @@ def light_samples(light: Light, n: int, seed: int = 0, ball: bool = False) -> np
     return q * light.radius
 
 
-def _fills_ball(light: Light, view) -> bool:
+def _fills_ball(light: Light, view, split: bool) -> bool:
     """Whether a sphere light's samples fill its ball or its disk across the view axis. A receiver θ
     off the axis sees the disk foreshortened by cos θ, the ball never; but a ball point nearer or farther
     than the centre moves the ray to a receiver at distance d by up to r/d across its disk. The view's
     widest angle (1 − cos θ) against r over its near depth picks the smaller error: the disk for a narrow
-    view (a spot's cone), the ball for a light whose receivers surround it (a room). A cube face keeps the
-    ball: its axis is not the light frame's Z, across which the disk lies."""
-    if view.face is not None or view.clamped:    # receivers all around the light: the ball
+    view (a spot's cone), the ball for a light whose receivers surround it (a room, or any light seen
+    through cube faces: every one of its views keeps the ball, and a face's axis is not the light frame's Z,
+    across which the disk lies)."""
+    if split or view.face is not None:
         return True
     t = float(np.max(np.abs(view.window)))
     foreshortening = 1.0 - 1.0 / float(np.hypot(1.0, t))
@@ -126,7 +127,7 @@ class AveragedMaps(Technique):
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
-        offsets = light_samples(light, n, s.seed, _fills_ball(light, lc.view)) if not light.is_delta else np.zeros((1, 2))
+        offsets = light_samples(light, n, s.seed, _fills_ball(light, lc.view, lc.split)) if not light.is_delta else np.zeros((1, 2))
         sums = frame.texture((frame.width, frame.height), 4)        # zero-filled
         weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted"):

@@ -29,6 +29,8 @@ class LightContext:
     # Where the pixels this light reaches lie against flat and convex objects (lightview.receiver_sides):
     # what shadowing_caster_bounds needs to leave out a floor or a room.
     receiver_sides: object = None
+    # The light is seen through several views (its single view and cube faces): its receivers surround it.
+    split: bool = False
     structures: dict = field(default_factory=dict)
     # A coloured visibility (RGBA32F texture, rgb per channel) for a textured light: Combined then uses it
     # channel by channel, while `out` keeps the scalar (luminance-weighted) visibility.
