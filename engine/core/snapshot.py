@@ -171,15 +171,17 @@ class SceneSnapshot:
         np.maximum.at(out[:, 1], ids, np.maximum.reduceat(hi, starts))
         return out
 
-    def _drawn_triangles(self):
-        """The triangles that draw something (finite, non-zero area) in float64: corners (T, 3, 3), normals
-        (T, 3, unnormalised, twice the area), areas ×2 (T,), object ids (T,)."""
-        p = self.positions.astype(np.float64)
+    def _drawn_triangles(self, mask: np.ndarray | None = None):
+        """The triangles (those selected by `mask`, all when None) that draw something (finite, non-zero
+        area), in float64: corners (T, 3, 3), normals (T, 3, unnormalised, twice the area), areas ×2 (T,),
+        object ids (T,)."""
+        p = (self.positions if mask is None else self.positions[mask]).astype(np.float64)
+        ids = self.object_id if mask is None else self.object_id[mask]
         with np.errstate(invalid="ignore", over="ignore"):
             normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
             area = np.linalg.norm(normal, axis=1)
         valid = np.isfinite(area) & (area > 0.0)
-        return p[valid], normal[valid], area[valid], self.object_id[valid]
+        return p[valid], normal[valid], area[valid], ids[valid]
 
     def flat_objects(self, limit: int = 16) -> dict:
         """Objects whose triangles all lie in one plane (a floor at any tilt, a flattened object), the
@@ -206,22 +208,33 @@ class SceneSnapshot:
                 out[int(index)] = (n, offset)
         return out
 
-    def convex_objects(self, max_faces: int = 512) -> dict:
+    def convex_objects(self, max_faces: int = 512, around=None, bounds: np.ndarray | None = None) -> dict:
         """Convex objects of at most `max_faces` triangles: index → (outward face normals (F, 3), offsets (F,)),
         the region n·p ≤ offset. A light inside such an object (a room, a dome) cannot be shadowed by it on
         anything inside it: the segment between two points of a convex region stays inside it, and the
-        surface lies on the region's boundary."""
+        surface lies on the region's boundary. With `around` (points, (N, 3)), only the objects whose bounds
+        hold one of them are examined (the lights: a scene of many small boxes costs one pass, not one per
+        box). `bounds`: object_bounds() when the caller has it already."""
         if self.triangle_count == 0:
             return {}
-        p, normal, area, ids = self._drawn_triangles()
-        tol = 1e-4 * max(float(np.abs(p).max()) if p.size else 1.0, 1.0)
-        counts = np.bincount(ids, minlength=len(self.objects))
+        bounds = self.object_bounds() if bounds is None else bounds
+        finite = np.isfinite(bounds).all(axis=(1, 2))
+        if not finite.any():
+            return {}
+        # the scale of every drawn vertex, as the bounds hold them
+        tol = 1e-4 * max(float(np.abs(bounds[finite]).max()), 1.0)
+        counts = np.bincount(self.object_id, minlength=len(self.objects))
+        candidates = finite & (counts > 3) & (counts <= max_faces)
+        if around is not None:
+            pts = np.asarray(around, float).reshape(-1, 3)
+            holds = (pts[None] >= bounds[:, None, 0]) & (pts[None] <= bounds[:, None, 1])
+            candidates &= holds.all(axis=2).any(axis=1)
         out = {}
-        for index in np.flatnonzero((counts > 3) & (counts <= max_faces)):
-            mine = ids == index
-            n = normal[mine] / area[mine][:, None]
-            d = np.einsum("fj,fj->f", n, p[mine][:, 0])
-            height = p[mine].reshape(-1, 3) @ n.T - d
+        for index in np.flatnonzero(candidates):
+            p, normal, area, _ = self._drawn_triangles(self.object_id == index)
+            n = normal / area[:, None]
+            d = np.einsum("fj,fj->f", n, p[:, 0])
+            height = p.reshape(-1, 3) @ n.T - d
             if height.max() <= tol:             # every vertex behind every face
                 out[int(index)] = (n, d)
             elif height.min() >= -tol:          # faces wound inwards (a room seen from inside)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.snapshot import AlbedoTexture, SceneSnapshot
+from ..core.snapshot import SUN, AlbedoTexture, SceneSnapshot
 from .programs import set_uniforms
 
 VERTEX_FORMAT = "3f 3f 3f"
@@ -224,8 +224,10 @@ class SoupGeometry(SceneGeometry):
         return self._flat
 
     def convex_objects(self):
-        if self._convex is None:
-            self._convex = self._snap.convex_objects()
+        if self._convex is None:        # only those that can hold a light matter (receiver_sides)
+            lights = [light.position for light in self._snap.lights if light.kind != SUN]
+            self._convex = (self._snap.convex_objects(around=lights, bounds=self.object_bounds())
+                            if lights else {})
         return self._convex
 
     def release(self):
