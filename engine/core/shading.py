@@ -44,7 +44,7 @@ def _light_values(light: Light) -> dict:
     u = {
         "u_center": tuple(pos), "u_emit_dir": tuple(-z_axis), "u_axis_u": (0.0, 0.0, 0.0),
         "u_axis_v": (0.0, 0.0, 0.0), "u_radius": 0.0, "u_one_sided": 0,
-        "u_spot_tan_wide": 0.0,
+        "u_spot_tan_wide": spot_tan_wide(light) if light.kind == SPOT else 0.0,   # irradiance.glsl's footprint
         "u_soft_falloff": int(light.use_soft_falloff),
     }
     if light.kind == AREA and not light.is_delta:
@@ -79,4 +79,4 @@ def spot_uniforms(light: Light) -> dict:
     scale = np.asarray(light.spot_scale, float)
     to_local = np.diag(1.0 / np.maximum(np.abs(scale), 1e-12)) @ np.asarray(light.matrix, float)[:3, :3].T
     return {"u_spot_cos_half": cos_half, "u_spot_smooth": float((1.0 - cos_half) * light.spot_blend),
-            "u_spot_to_local": tuple(to_local.T.ravel()), "u_spot_tan_wide": spot_tan_wide(light)}
+            "u_spot_to_local": tuple(to_local.T.ravel())}

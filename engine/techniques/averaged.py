@@ -132,7 +132,7 @@ class AveragedMaps(Technique):
         weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
-        spot = {k: v for k, v in spot_uniforms(light).items() if k != "u_spot_tan_wide"}
+        spot = spot_uniforms(light)
         true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
         samples = []                        # (view, sample position, emission axis) per light sample
