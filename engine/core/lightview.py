@@ -260,7 +260,7 @@ def _union(a, b) -> tuple:
 
 @dataclass
 class ReceiverSides:
-    """Where the pixels a light reaches lie against the scene's flat and convex objects (`receiver_sides`):
+    """Where a frame's visible pixels lie against the scene's flat and convex objects (`receiver_sides`):
     what `shadowing_caster_bounds` needs to leave out a caster that cannot shadow them."""
     flat: dict = field(default_factory=dict)        # index → (normal, offset, lo, hi) of the signed distances
     enclosing: dict = field(default_factory=dict)   # index → (normals, offsets): convex objects holding them all
@@ -298,9 +298,9 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
 
     A flat caster (a ground plane at any tilt, a flattened object) shadows only what lies beyond its plane as
     seen from the light. It is left out when no lit receiver does: when the receivers' bounds stay on the
-    light's side of an axis-aligned plane, or when the lit pixels do (`sides.flat`), so a large floor does not
-    stretch every light's map. A convex caster that holds the light and every lit pixel (`sides.enclosing`: a
-    room, a dome around the scene) shadows nothing either.
+    light's side of an axis-aligned plane, or when the visible pixels do (`sides.flat`), so a large floor does
+    not stretch every light's map. A convex caster that holds the light and every visible pixel
+    (`sides.enclosing`: a room, a dome around the scene) shadows nothing either.
     """
     r_corners = box_corners(*receivers)
     tol = 1e-6 * max(float(np.abs(r_corners).max()), 1.0)
@@ -319,7 +319,7 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
             side = _light_side(light, np.eye(3)[axis], plane)
             if side != 0 and np.all((r_corners[:, axis] - plane) * side >= -tol):
                 continue
-        if int(index) in sides.flat:    # lit pixels on the light's side of its plane (or on it): nothing to shadow
+        if int(index) in sides.flat:    # visible pixels on the light's side of its plane (or on it): nothing to shadow
             normal, offset, d_lo, d_hi = sides.flat[int(index)]
             side = _light_side(light, normal, offset)
             # G-buffer positions on the plane itself carry float32 interpolation error (a few ulps): 1e-5 of

@@ -26,8 +26,8 @@ class LightContext:
     receivers: tuple                    # world AABB (lo, hi) of the pixels this light reaches
     casters: tuple | None               # world AABB of the casters, None when there are none
     uniforms: dict                      # light-view uniforms plus bias settings
-    # Where the pixels this light reaches lie against flat and convex objects (lightview.receiver_sides):
-    # what shadowing_caster_bounds needs to leave out a floor or a room.
+    # Where the frame's visible pixels lie against flat and convex objects (lightview.receiver_sides): what
+    # shadowing_caster_bounds needs to leave out a floor or a room.
     receiver_sides: object = None
     # The light is seen through several views (its single view and cube faces): its receivers surround it.
     split: bool = False
