@@ -19,12 +19,21 @@ from ..gpu.frame import MAX_DEPTH_LAYERS
 from .base import MAP_SIZE_SWEEP, Option, Technique
 
 
+# Roberts' R_d sequences (2018): the root of x^(d+1) = x + 1 for d dimensions.
+_R_ROOTS = {2: 1.32471795724474602596, 3: 1.22074408460575947536}
+
+
+def r_sequence(n: int, dims: int, seed: int = 0) -> np.ndarray:
+    """n points in [0, 1)^dims, well stratified for any n (R_d sequence with a seeded offset)."""
+    g = _R_ROOTS[dims]
+    alpha = np.array([1.0 / g ** k for k in range(1, dims + 1)])
+    offset = np.random.default_rng(seed).random(dims)
+    return (offset + np.arange(1, n + 1)[:, None] * alpha) % 1.0
+
+
 def unit_square_samples(n: int, seed: int = 0) -> np.ndarray:
-    """n points in [-1, 1]², well stratified for any n (R2 sequence with a seeded offset)."""
-    g = 1.32471795724474602596
-    alpha = np.array([1.0 / g, 1.0 / g ** 2])
-    offset = np.random.default_rng(seed).random(2)
-    return ((offset + np.arange(1, n + 1)[:, None] * alpha) % 1.0) * 2.0 - 1.0
+    """n points in [-1, 1]², well stratified for any n (`r_sequence`)."""
+    return r_sequence(n, 2, seed) * 2.0 - 1.0
 
 
 def concentric_disk(q: np.ndarray) -> np.ndarray:
@@ -43,9 +52,8 @@ def projected_disk_ball(n: int, seed: int = 0) -> np.ndarray:
     density ∝ 1/√(1 − r²) (its integral along a chord at distance ρ from the centre is π for every ρ). A point
     or spot light with a radius is, seen from each receiver, a disk facing it (Cycles' soft falloff, or the
     sphere's silhouette far away); points on one fixed disk would be foreshortened for receivers off its axis.
-    Stratified with the R3 sequence (Roberts 2018) and a seeded offset."""
-    g = 1.22074408460575947536                  # x⁴ = x + 1
-    u = (np.random.default_rng(seed).random(3) + np.arange(1, n + 1)[:, None] * g ** -np.arange(1.0, 4.0)) % 1.0
+    Stratified with `r_sequence`."""
+    u = r_sequence(n, 3, seed)
     z = 1.0 - 2.0 * u[:, 0]
     phi = 2.0 * np.pi * u[:, 1]
     ring = np.sqrt(np.maximum(1.0 - z * z, 0.0))
