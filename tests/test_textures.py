@@ -221,16 +221,23 @@ def test_mapping_types_texture_is_the_inverse_of_point(bpy_mod):
     assert _mapping_matrix(normal) is None
 
 
+def _drive_base_colour(mat, node_type):
+    """A new `node_type` node in `mat` whose Color output drives the Principled BSDF's Base Color."""
+    nt = mat.node_tree
+    node = nt.nodes.new(node_type)
+    bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
+    nt.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+    return node
+
+
 def _image_material(bpy, name, image, vector_node=None, output="UV"):
     from penumbra.engine.measure import scenes
     mat = scenes.diffuse_material(name, (1, 1, 1))
-    nt = mat.node_tree
-    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex = _drive_base_colour(mat, "ShaderNodeTexImage")
     tex.image = image
     if vector_node is not None:
+        nt = mat.node_tree
         nt.links.new(vector_node(nt).outputs[output], tex.inputs["Vector"])
-    bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-    nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
     return mat, tex
 
 
@@ -297,14 +304,11 @@ def test_colour_attribute_per_corner_and_point(bpy_mod):
     cases = (("CORNER", "BYTE_COLOR", "ShaderNodeVertexColor"), ("POINT", "FLOAT_COLOR", "ShaderNodeAttribute"))
     for i, (domain, kind, node_type) in enumerate(cases):
         mat = scenes.diffuse_material(f"Col{i}", (1, 1, 1))
-        nt = mat.node_tree
-        node = nt.nodes.new(node_type)
+        node = _drive_base_colour(mat, node_type)
         if node_type == "ShaderNodeVertexColor":
             node.layer_name = "Paint"
         else:
             node.attribute_name = "Paint"
-        bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-        nt.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
         ob = _quad_object(bpy, f"Q{i}", mat, z=0.1 * i)
         attr = ob.data.color_attributes.new("Paint", kind, domain)
         colours = np.array([[0.1, 0.2, 0.3, 1], [0.4, 0.5, 0.6, 1], [0.7, 0.8, 0.9, 1], [1.0, 0.5, 0.0, 1]],
@@ -328,11 +332,7 @@ def test_what_is_not_read_is_named_and_grey(bpy_mod):
     from penumbra.engine.measure import scenes
     _empty_scene(bpy)
     noise = scenes.diffuse_material("Noisy", (1, 1, 1))
-    nt = noise.node_tree
-    node = nt.nodes.new("ShaderNodeTexNoise")
-    node.name = "My Noise"
-    bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-    nt.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+    _drive_base_colour(noise, "ShaderNodeTexNoise").name = "My Noise"
     _quad_object(bpy, "A", noise)
     img = scenes.checker_image("C", size=8, cells=2)
     generated, _ = _image_material(bpy, "Generated", img, lambda nt: nt.nodes.new("ShaderNodeTexCoord"),
@@ -385,11 +385,7 @@ def _paint_ground(bpy, scene):
     from penumbra.engine.measure import scenes
     ground = scene.objects[scenes.GROUND_NAME]
     mat = scenes.diffuse_material("Painted", (1, 1, 1))
-    nt = mat.node_tree
-    node = nt.nodes.new("ShaderNodeVertexColor")
-    node.layer_name = "Paint"
-    bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-    nt.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+    _drive_base_colour(mat, "ShaderNodeVertexColor").layer_name = "Paint"
     ground.data.materials[0] = mat
     attr = ground.data.color_attributes.new("Paint", "BYTE_COLOR", "CORNER")
     attr.data.foreach_set("color", np.array([[0.9, 0.1, 0.1, 1], [0.1, 0.9, 0.1, 1], [0.1, 0.1, 0.9, 1],
@@ -472,9 +468,7 @@ def test_material_panel_says_what_is_read_and_what_is_not(bpy_mod):
     assert checker[0][1] == "Base colour: image 'Checker' through the active UV map and a Mapping"
     assert not any(icon == "ERROR" for icon, _ in checker)
     noisy = bpy.data.materials["OccluderMaterial"].copy()
-    nt = noisy.node_tree
-    bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
-    nt.links.new(nt.nodes.new("ShaderNodeTexWave").outputs["Color"], bsdf.inputs["Base Color"])
+    _drive_base_colour(noisy, "ShaderNodeTexWave")
     lines = drawn(noisy)
     assert lines[0][1] == "Base colour: 0.8 grey"
     errors = " ".join(text for icon, text in lines if icon in ("ERROR", "BLANK1"))
