@@ -132,6 +132,41 @@ def test_smooth_shading_normals(scn):
     assert np.allclose(s.normals[:, 0], geo, atol=1e-4)
 
 
+def test_flat_faces_shade_with_their_triangles_normals(scn):
+    """Cycles shades a flat (sharp) face's triangles with each triangle's own geometric normal, not the face
+    normal Blender's corner normals carry; on a non-planar quad the two differ, and near the terminator
+    they disagree on whether the light is above the surface at all (fuzz seed 3013: a flat monkey's faces
+    came out unlit where Cycles lit and shadowed them). Smooth faces keep their corner normals, in a mesh
+    that mixes both, also mirrored and instanced."""
+    verts = [(0, 0, 0), (1, 0, 0.4), (1, 1, 0), (0, 1, 0.3), (2, 0, 0), (2, 1, 0.5)]
+    ob = add_mesh(scn, "Bent", verts, [(0, 1, 2, 3), (1, 4, 5, 2)], scale=(1, -1, 1))
+    me = ob.data
+    me.polygons[0].use_smooth = False           # sharp: its two triangles' own normals
+    me.polygons[1].use_smooth = True            # smooth: corner normals
+    me.update()
+    s = snap()
+    geo = face_normals(s.positions.astype(np.float64))
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = ob.evaluated_get(dg).data
+    flat_tris = np.array([t.polygon_index == 0 for t in ev.loop_triangles])
+    assert flat_tris.sum() == 2 and not np.allclose(geo[0], geo[1], atol=1e-2)    # the quad is bent
+    for c in range(3):
+        assert np.allclose(s.normals[flat_tris, c], geo[flat_tris], atol=1e-5)
+    assert not np.allclose(s.normals[~flat_tris, 0], geo[~flat_tris], atol=1e-2)
+    # every edge sharp and no sharp_face attribute: the normals domain is FACE, every triangle flat
+    bpy.data.objects.remove(ob)
+    ob = add_mesh(scn, "AllSharp", verts, [(0, 1, 2, 3), (1, 4, 5, 2)])
+    ob.data.shade_smooth()
+    for e in ob.data.edges:
+        e.use_edge_sharp = True
+    ob.data.update()
+    assert ob.data.normals_domain == "FACE"
+    s = snap()
+    geo = face_normals(s.positions.astype(np.float64))
+    for c in range(3):
+        assert np.allclose(s.normals[:, c], geo, atol=1e-5)
+
+
 def test_flattened_object_normals_come_from_its_triangles(scn):
     """A scale axis at 0 (issue 10 item 4): the cofactor sends each smooth normal to ±(that axis) by the sign
     of its component along it, so neighbouring corners disagree. The normals are the flattened triangles'

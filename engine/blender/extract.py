@@ -140,16 +140,50 @@ def read_mesh(mesh) -> _MeshArrays | None:
     mesh.corner_normals.foreach_get("vector", cn)
     cn = cn.reshape(nl, 3)
 
-    face_mat = _read_int_attribute(mesh, "material_index", "FACE", len(mesh.polygons))
-    if face_mat is None:
-        mat = np.zeros(nt, np.int32)
-    else:
-        tri_poly = np.empty(nt, np.int32)
-        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
-        mat = np.take(face_mat, tri_poly)
+    tri_poly = None
 
-    return _MeshArrays(np.take(co, tri_verts, axis=0).reshape(nt, 3, 3),
-                       np.take(cn, loops, axis=0).reshape(nt, 3, 3), mat, loops, tri_verts)
+    def triangle_faces():
+        nonlocal tri_poly
+        if tri_poly is None:
+            tri_poly = np.empty(nt, np.int32)
+            mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
+        return tri_poly
+
+    face_mat = _read_int_attribute(mesh, "material_index", "FACE", len(mesh.polygons))
+    mat = np.zeros(nt, np.int32) if face_mat is None else np.take(face_mat, triangle_faces())
+
+    pos = np.take(co, tri_verts, axis=0).reshape(nt, 3, 3)
+    nrm = np.take(cn, loops, axis=0).reshape(nt, 3, 3)
+    flat = _flat_triangles(mesh, triangle_faces)
+    if flat is not None:
+        nrm[flat] = _triangle_normals(pos[flat])[:, None, :]
+    return _MeshArrays(pos, nrm, mat, loops, tri_verts)
+
+
+def _flat_triangles(mesh, triangle_faces):
+    """Triangles of flat-shaded faces: a bool mask, or None when every face is smooth. Cycles shades a flat
+    triangle with its own geometric normal (not the face normal Blender's corner normals carry, which differs
+    on a non-planar quad or n-gon), and a face is flat when its `sharp_face` is set or, without that
+    attribute, when every edge is sharp (normals domain FACE)."""
+    sharp = mesh.attributes.get("sharp_face")
+    if sharp is not None and sharp.domain == "FACE" and sharp.data_type == "BOOLEAN" \
+            and len(sharp.data) == len(mesh.polygons):
+        faces = np.empty(len(mesh.polygons), bool)
+        sharp.data.foreach_get("value", faces)
+        if not faces.any():
+            return None
+        return np.take(faces, triangle_faces())
+    if mesh.normals_domain == "FACE":
+        return np.ones(len(mesh.loop_triangles), bool)
+    return None
+
+
+def _triangle_normals(pos: np.ndarray) -> np.ndarray:
+    """Unit geometric normals (n, 3) of triangles (n, 3, 3), counter-clockwise front; zero for a degenerate
+    triangle (sanitize repairs or drops it later)."""
+    n = np.cross(pos[:, 1] - pos[:, 0], pos[:, 2] - pos[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0).astype(np.float32)
 
 
 def read_corner_layers(arrays: _MeshArrays, mesh, sources, owner: str, warn) -> None:
