@@ -270,3 +270,61 @@ def test_casters_outside_a_light_view_are_not_drawn_into_it():
     assert inside == frozenset({0, 1}) and drawn == [frozenset({0, 1})]
     np.testing.assert_array_equal(culled, full)
     assert (culled < 1e9).any()
+
+
+def _low_poly_sphere(radius: float, smooth: bool):
+    """An octahedron subdivided twice and pushed onto a sphere (128 triangles): radial corner normals when
+    `smooth`, each triangle's own when flat."""
+    v = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], float)
+    faces = [(0, 1, 4), (1, 2, 4), (2, 3, 4), (3, 0, 4), (1, 0, 5), (2, 1, 5), (3, 2, 5), (0, 3, 5)]
+    tris = np.array([[v[a], v[b], v[c]] for a, b, c in faces])
+    for _ in range(2):
+        a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+        ab, bc, ca = (a + b) / 2, (b + c) / 2, (c + a) / 2
+        tris = np.concatenate([np.stack(t, 1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+    tris = tris / np.linalg.norm(tris, axis=-1, keepdims=True)
+    if smooth:
+        normals = tris.copy()
+    else:
+        n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        normals = np.repeat((n / np.linalg.norm(n, axis=1, keepdims=True))[:, None], 3, axis=1)
+    return (radius * tris).astype(np.float32), normals.astype(np.float32)
+
+
+@pytest.mark.parametrize("smooth", [True, False], ids=["smooth", "flat"])
+def test_terminator_lift_moves_a_low_poly_sphere_towards_its_smooth_surface(smooth):
+    """The G-buffer's shadow-terminator lift (common/gbuffer.frag, Cycles' smooth-surface offset): on a
+    smooth low-poly sphere, the lifted point P + lift·n lies nearer the sphere the corner normals describe
+    than the flat triangle's point does, for every pixel off the triangles' edges; flat triangles get none."""
+    from penumbra.engine.core.snapshot import Camera, ObjectInfo, SceneSnapshot
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    from penumbra.engine.measure.stress import look_at, perspective
+    positions, normals = _low_poly_sphere(1.0, smooth)
+    base = floating_plane(64)
+    cam = Camera("Camera", np.linalg.inv(look_at((0.3, -3.0, 1.2), (0.0, 0.0, 0.0))),
+                 perspective(np.radians(45), 1.0, 0.1, 100.0), 64, 64)
+    snap = SceneSnapshot(positions, normals, np.zeros(len(positions), np.int32), np.full((len(positions), 3), 0.8,
+                         np.float32), [ObjectInfo("Ball")], base.lights, cam, name="ball")
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings().with_(antialiasing=False))
+        try:
+            return {k: frame.read(t) for k, t in frame.gbuffer.items()}
+        finally:
+            frame.release()
+    g = GpuWorker.get().submit(job).result()
+    covered = g["g_position"][..., 3] > 0
+    p = g["g_position"][..., :3][covered].astype(np.float64)
+    lift = g["g_geometric"][..., 3][covered].astype(np.float64)
+    lifted = p + lift[:, None] * g["g_normal"][..., :3][covered]
+    assert covered.sum() > 1500
+    if not smooth:
+        assert np.all(lift == 0.0)
+        return
+    before = 1.0 - np.linalg.norm(p, axis=1)           # the flat triangles lie inside the sphere
+    after = np.abs(1.0 - np.linalg.norm(lifted, axis=1))
+    inner = before > 2e-3                              # off the edges, where the triangle meets the sphere
+    print("mean gap to the sphere before/after:", before[inner].mean(), after[inner].mean())
+    assert inner.sum() > 1000 and np.all(lift[inner] > 0.0)
+    assert np.all(after[inner] < before[inner])

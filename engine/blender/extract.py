@@ -764,7 +764,8 @@ def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, materi
     oid = object_index.get(okey)
     if oid is None:
         oid = object_index[okey] = len(objects)
-        objects.append(ObjectInfo(name=ob.name, caster=caster, receiver=receiver, role=role))
+        objects.append(ObjectInfo(name=ob.name, caster=caster, receiver=receiver, role=role,
+                                  terminator_offset=float(getattr(ob, "shadow_terminator_geometry_offset", 0.1))))
 
     mats = [slot.material for slot in ob.material_slots]
     if not mats:

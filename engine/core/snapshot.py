@@ -94,6 +94,7 @@ class ObjectInfo:
     caster: bool = True             # appears in shadow maps (Blender: visible_shadow)
     receiver: bool = True           # appears in the camera view (Blender: visible_camera)
     role: str = "BOTH"              # Penumbra object role for techniques that split casters/receivers
+    terminator_offset: float = 0.1  # Blender's Shadow Terminator Geometry Offset (Cycles' smooth-surface lift)
 
 
 @dataclass
@@ -240,6 +241,23 @@ class SceneSnapshot:
             elif height.min() >= -tol:          # faces wound inwards (a room seen from inside)
                 out[int(index)] = (-n, -d)
         return out
+
+    def terminator_offset(self) -> tuple[float, str | None]:
+        """The Shadow Terminator Geometry Offset the visible objects share (Cycles' default 0.1 when there are
+        none), and a warning when they differ: the G-buffer carries no object index, so one value serves
+        the frame (the largest, the one most objects are rendered with being unknowable here)."""
+        values = sorted({float(o.terminator_offset) for o in self.objects if o.receiver})
+        if not values:
+            return 0.1, None
+        if len(values) == 1:
+            return values[0], None
+        return values[-1], (f"objects differ in Shadow Terminator Geometry Offset ({', '.join(f'{v:g}' for v in values)}): "
+                            f"Penumbra uses {values[-1]:g} for all of them")
+
+    def has_smooth_triangles(self) -> bool:
+        """True when some triangle's corner normals differ (flat triangles carry their own normal thrice)."""
+        n = self.normals
+        return bool(n.shape[0]) and bool((np.abs(n[:, 1:] - n[:, :1]) > 1e-6).any())
 
     def caster_mask(self) -> np.ndarray:
         flags = np.array([o.caster for o in self.objects] or [False], dtype=bool)

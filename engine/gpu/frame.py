@@ -142,7 +142,7 @@ class Frame:
         self._from_pool: list = []      # pooled objects this frame took: given back by release()
         self._per_light: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline
-        self.bias_uniforms: dict = {}   # u_bias / u_normal_offset, shared by every technique
+        self.bias_uniforms: dict = {}   # u_bias / u_normal_offset / u_terminator_offset, shared by every technique
         self.warnings: list[str] = list(snap.warnings)  # FrameResult.warnings
         self.stats: dict = {}           # counters techniques add (FrameResult.stats)
         with self.timings.stage("upload"):
@@ -272,7 +272,11 @@ class Frame:
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             ctx.enable(ctx.DEPTH_TEST)
             ctx.disable(ctx.CULL_FACE)
-            prog = program(self.worker, "common/gbuffer.vert", "common/gbuffer.frag")
+            if self.geometry.has_smooth:    # the terminator lift needs each fragment's whole triangle
+                prog = program(self.worker, "common/gbuffer.vert", "common/gbuffer.frag",
+                               geometry="common/gbuffer.geom", defines={"TERMINATOR_LIFT": 1})
+            else:
+                prog = program(self.worker, "common/gbuffer.vert", "common/gbuffer.frag")
             inv_view = np.linalg.inv(cam.view)
             set_uniforms(prog, {
                 "u_view": mat_uniform(cam.view), "u_view_proj": mat_uniform(cam.projection @ cam.view),

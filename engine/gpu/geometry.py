@@ -124,6 +124,7 @@ class SceneGeometry:
     """What the frame needs from geometry: draws per role, per-object bounds, whether anything casts."""
 
     has_casters = False
+    has_smooth = True           # some triangles are smooth-shaded (the G-buffer computes their terminator lift)
 
     def draws(self, role: str, objects: frozenset | None = None) -> list[Draw]:
         raise NotImplementedError
@@ -185,6 +186,7 @@ class SoupGeometry(SceneGeometry):
         self.vbo = ctx.buffer(interleave(snap.positions, snap.normals, albedo) if t else bytes(36))
         self._masks = {"receiver": snap.receiver_mask(), "caster": snap.caster_mask()}
         self.has_casters = bool(self._masks["caster"].any())
+        self.has_smooth = snap.has_smooth_triangles()
         self._ibos: dict = {}
         self._bounds = self._flat = self._convex = None
         self.nbytes = self.vbo.size

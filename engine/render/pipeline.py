@@ -69,7 +69,11 @@ def render_job(worker, job: Job, snap: SceneSnapshot, settings: RenderSettings,
     frame = Frame(worker, snap, settings, geometry, stage_times=stage_times)
     try:
         frame.progress = Progress(job, len(snap.lights))
-        frame.bias_uniforms = {"u_bias": float(settings.bias), "u_normal_offset": float(settings.normal_offset)}
+        offset, mixed = snap.terminator_offset()
+        if mixed:
+            frame.warn(mixed)
+        frame.bias_uniforms = {"u_bias": float(settings.bias), "u_normal_offset": float(settings.normal_offset),
+                               "u_terminator_offset": offset}
         result = _render_lights(frame, technique)
     finally:
         frame.release()

@@ -27,7 +27,9 @@ void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px) || !pixel_lit(px)) return;
     vec3 p = texelFetch(g_position, px, 0).xyz;
-    vec3 ng = texelFetch(g_geometric, px, 0).xyz;
+    vec4 geometric = texelFetch(g_geometric, px, 0);
+    vec3 ng = geometric.xyz;
+    float lift = geometric.w;
     vec3 n = texelFetch(g_normal, px, 0).xyz;
     vec4 sums = imageLoad(u_sums, px);
     vec3 from_centre = p - u_sphere_inside.xyz;
@@ -40,26 +42,31 @@ void main() {
         u_texel_tan = s.range_tan_ortho.z;
         u_light_ortho = int(s.range_tan_ortho.w);
         u_map_size = s.size.xy;
-        Receiver r = make_receiver(p, ng);
+        // the sample's direction, and its unoccluded contribution at p
+        vec3 to_light;
+        float w = 1.0;
+        if (u_weight_mode == WEIGHT_SUN) {
+            to_light = -s.emit.xyz;
+            // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts
+            w = max(dot(n, to_light), 0.0);
+        } else {
+            vec3 to_sample = s.position.xyz - p;
+            float d2 = max(dot(to_sample, to_sample), 1e-30);   // m²: a receiver on the sample point
+            to_light = to_sample * inversesqrt(d2);
+            if (u_weight_mode != WEIGHT_NONE) {
+                w = max(dot(n, to_light), 0.0) / d2;
+                if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-to_light, s.emit.xyz), 0.0);
+                // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
+                // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
+                // sphere Cycles applies no cone.
+                if (u_spot_cos_half > -1.0 && !inside_sphere) w *= spot_attenuation(-to_light);
+            }
+        }
+        Receiver r = make_lit_receiver(p, ng, n, lift, to_light);
         ivec2 t = ivec2(floor(r.map.xy));
         float v = 1.0;              // outside the map counts as lit (map_lit)
         if (all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_map_size)))
             v = texelFetch(u_depth_maps, ivec3(t, i), 0).r < receiver_depth_at(r, vec2(t) + 0.5) ? 0.0 : 1.0;
-        float w = 1.0;
-        if (u_weight_mode == WEIGHT_SUN) {
-            // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts
-            w = max(dot(n, -s.emit.xyz), 0.0);
-        } else if (u_weight_mode != WEIGHT_NONE) {
-            vec3 to_sample = s.position.xyz - p;
-            float d2 = max(dot(to_sample, to_sample), 1e-30);   // m²: a receiver on the sample point
-            vec3 dir = to_sample * inversesqrt(d2);
-            w = max(dot(n, dir), 0.0) / d2;
-            if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-dir, s.emit.xyz), 0.0);
-            // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
-            // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
-            // sphere Cycles applies no cone.
-            if (u_spot_cos_half > -1.0 && !inside_sphere) w *= spot_attenuation(-dir);
-        }
         sums += vec4(w * v, w, v, 1.0);
     }
     imageStore(u_sums, px, sums);

@@ -483,7 +483,7 @@ struct Result {
 
 Pixel make_pixel(ivec2 px) {
     Pixel p;
-    p.r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+    p.r = pixel_receiver(px);
     p.d = p.r.map.z;
     p.tex = (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
     p.tp = window_coords(p.r.local);

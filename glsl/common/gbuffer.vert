@@ -1,4 +1,12 @@
 // Camera G-buffer: world position, shading normal, albedo per pixel.
+#ifdef TERMINATOR_LIFT
+// common/gbuffer.geom sits between this stage and the fragment stage and passes these on.
+#define v_position vs_position
+#define v_normal vs_normal
+#define v_albedo vs_albedo
+#define v_uv vs_uv
+#define v_depth vs_depth
+#endif
 in vec3 in_position;
 in vec3 in_normal;
 in vec3 in_albedo;

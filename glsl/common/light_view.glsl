@@ -15,6 +15,7 @@ LIGHT_VIEW_VALUE ivec2 u_map_size;
 LIGHT_VIEW_VALUE float u_texel_tan;        // window units per texel
 uniform float u_bias;             // texels, scaled by the receiver's slope
 uniform float u_normal_offset;    // texels along the geometric normal
+uniform float u_terminator_offset = 0.0;  // Cycles' Shadow Terminator Geometry Offset (make_lit_receiver)
 
 vec3 light_local(vec3 p) {
     return (u_light_view * vec4(p, 1.0)).xyz;
@@ -40,12 +41,14 @@ float texel_world(float depth) {
 
 // A receiver as the shadow-map techniques see it: its light-local position pushed off the surface along
 // the geometric normal (normal-offset bias), that normal in light space, its map coordinates (texels,
-// depth) and the slope-scaled depth bias to subtract before comparing with the map.
+// depth) and the slope-scaled depth bias to subtract before comparing with the map. `through_surface`: the
+// light lies behind the receiver's own triangle, see make_lit_receiver.
 struct Receiver {
     vec3 local;
     vec3 normal;
     vec3 map;
     float bias;
+    bool through_surface;
 };
 
 Receiver make_receiver(vec3 p, vec3 ng) {
@@ -59,8 +62,51 @@ Receiver make_receiver(vec3 p, vec3 ng) {
     r.local = l + r.normal * (u_normal_offset * texel);
     r.map = map_coords(r.local);
     r.bias = u_bias * texel * (0.5 + tan_t);
+    r.through_surface = false;
     return r;
 }
+
+// The receiver as Cycles' shadow ray towards `to_light` (world, unit) leaves it (shadow_ray_offset), for a
+// pixel with viewer-facing shading normal n and geometric normal ng and the terminator lift of
+// common/gbuffer.frag: on a smooth triangle the ray starts lifted along n, by an amount that ramps up to
+// the whole lift as the light nears either normal's horizon (over u_terminator_offset in cosine). A light
+// behind the triangle (below ng) while n still faces it sends the ray into the surface the receiver lies
+// on, which is meant to stop it: such a receiver is compared with the map as it is (through_surface),
+// without the tangent-plane rule that keeps a surface from shadowing itself.
+Receiver make_lit_receiver(vec3 p, vec3 ng, vec3 n, float lift, vec3 to_light) {
+    float nl_signed = dot(n, to_light);
+    float nl = abs(nl_signed);
+    float ngl = dot(ng, to_light);
+    vec3 q = p;
+    if (u_terminator_offset > 0.0 && lift != 0.0) {
+        float amount = nl < u_terminator_offset ? clamp(2.0 - (ngl + nl) / u_terminator_offset, 0.0, 1.0)
+                                                : clamp(1.0 - ngl / u_terminator_offset, 0.0, 1.0);
+        q += n * (lift * amount);
+    }
+    Receiver r = make_receiver(q, ng);
+    // A flat face (no lift) keeps the tangent-plane rule for a light centre behind it: that carries nothing
+    // itself, and the techniques that stand for a whole light by its centre must not let the face's own
+    // object shadow the part of the light in front of it (a cube's sides under a wide light). A smooth
+    // triangle stands for a surface that curves away behind it: a light behind it is behind that surface.
+    r.through_surface = ngl <= 0.0 && (nl_signed > 0.0 || lift != 0.0);
+    return r;
+}
+
+// make_lit_receiver with the shadow ray towards the view's own origin: the light centre, or a sun's
+// direction for an orthographic view (the techniques that test one map from the centre).
+Receiver make_view_receiver(vec3 p, vec3 ng, vec3 n, float lift) {
+    vec3 to_origin = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : -light_local(p);
+    return make_lit_receiver(p, ng, n, lift, normalize(transpose(mat3(u_light_view)) * to_origin));
+}
+
+#ifdef G_BUFFER_PIXELS
+// The receiver at a G-buffer pixel (common/pixel.glsl), towards the view's origin.
+Receiver pixel_receiver(ivec2 px) {
+    vec4 geometric = texelFetch(g_geometric, px, 0);
+    return make_view_receiver(texelFetch(g_position, px, 0).xyz, geometric.xyz, texelFetch(g_normal, px, 0).xyz,
+                              geometric.w);
+}
+#endif
 
 // Depth along the map ray through `map_pos` below which a surface lies on the light's side of the receiver's
 // tangent plane, less the bias: what a texel there must be nearer than to shadow the receiver. A ray from the
@@ -78,11 +124,11 @@ float receiver_depth_at(Receiver r, vec2 map_pos) {
     float z;
     if (u_light_ortho == 1) {
         // point (w, -z): above the plane where n.xy·w − n.z·z > np; the light is above when n.z > 0
-        if (r.normal.z <= 1e-6) return 0.0;
+        if (r.normal.z <= 1e-6) return r.through_surface ? far - r.bias : 0.0;
         z = (r.normal.x * w.x + r.normal.y * w.y - np) / r.normal.z;
     } else {
         // point z·(w, −1): above the plane where z·den > np; the light (the origin) is above when np < 0
-        if (np >= 0.0) return 0.0;
+        if (np >= 0.0) return r.through_surface ? far - r.bias : 0.0;
         float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
         z = den < 0.0 ? np / den : far;     // a ray that never meets the plane stays above it
     }

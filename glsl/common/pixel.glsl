@@ -1,5 +1,6 @@
 // Per-pixel inputs shared by the compute passes: the camera G-buffer and this light's irradiance.
 layout(local_size_x = 8, local_size_y = 8) in;
+#define G_BUFFER_PIXELS     // common/light_view.glsl adds pixel_receiver
 
 uniform sampler2D g_position;
 uniform sampler2D g_normal;

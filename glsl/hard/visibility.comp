@@ -11,7 +11,7 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0;
     if (pixel_lit(px)) {
-        Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+        Receiver r = pixel_receiver(px);
         v = map_lit_plane(u_depth_map, ivec2(floor(r.map.xy)), r);
     }
     imageStore(u_visibility, px, vec4(v));

@@ -12,7 +12,7 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0;
     if (pixel_lit(px)) {
-        Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+        Receiver r = pixel_receiver(px);
         float step_size = u_taps > 1 ? 2.0 * u_radius / float(u_taps - 1) : 0.0;
         float sum = 0.0;
         for (int j = 0; j < u_taps; ++j)

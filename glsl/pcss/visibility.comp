@@ -34,7 +34,7 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0;
     if (pixel_lit(px)) {
-        Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+        Receiver r = pixel_receiver(px);
         vec3 n = view_direction(texelFetch(g_normal, px, 0).xyz);
         float d = r.map.z - r.bias;
         // 1. Blocker search over the region the light can be seen through at the near plane.

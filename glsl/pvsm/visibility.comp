@@ -405,7 +405,7 @@ void main() {
 #endif
     if (pixel_lit(px)) {
         vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
-        g_r = make_receiver(p, ng);
+        g_r = pixel_receiver(px);
         g_depth = g_r.map.z - g_r.bias;
         mat2 phi = mat2(0.0);
         if (u_aa == 1 || u_rho != 0 || MODE == 1) phi = pixel_footprint(px, p, ng);

@@ -197,7 +197,7 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0, cls = 0.0;
     if (pixel_lit(px)) {
-        Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+        Receiver r = pixel_receiver(px);
         // The normal offset keeps its depth, not its sideways shift: at sub-texel precision that shift
         // (δ·tanθ on the receiver) moves outer shadow edges outwards.
         vec3 surface = texelFetch(g_position, px, 0).xyz;
