@@ -323,7 +323,8 @@ def cmd_bench(args) -> int:
                               cycles_ladder=_int_list(args.cycles_peer_samples, "--cycles-peer-samples",
                                                       *CYCLES_SAMPLES_RANGE),
                               max_pixels=args.max_pixels, max_triangles=args.max_triangles,
-                              max_lights=args.max_lights, cycles_max_pixels=args.cycles_max_pixels)
+                              max_lights=args.max_lights, cycles_max_pixels=args.cycles_max_pixels,
+                              base_size=tuple(args.base_size))
         except ValueError as exc:
             print(f"penumbra: {exc}", file=sys.stderr)
             return 2
@@ -509,6 +510,8 @@ def build_parser() -> argparse.ArgumentParser:
                        ("--max-lights", "light counts"), ("--cycles-max-pixels", "Cycles (reference and ladder)")):
         b.add_argument(flag, type=ranged(int, 1), default=None,
                        help=f"with --scaling: {what} only up to this many" + (" pixels" if "pixels" in flag else ""))
+    b.add_argument("--base-size", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
+                   default=[384, 384], help="with --scaling: output size of the triangle and light sweeps")
     b.add_argument("--viewport-size", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
                    default=[1280, 720], help="viewport size in pixels")
     b.add_argument("--study", choices=tuple(STUDIES),

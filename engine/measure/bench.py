@@ -796,7 +796,7 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
                 reference_samples: int = DEFAULT_REFERENCE_SAMPLES, cycles_ladder=CYCLES_SAMPLES,
                 target_samples: int = TARGET_SAMPLES, max_pixels: int | None = None,
                 max_triangles: int | None = None, max_lights: int | None = None,
-                cycles_max_pixels: int | None = None, cache_dir=None,
+                cycles_max_pixels: int | None = None, base_size=SCALING_BASE_SIZE, cache_dir=None,
                 budget_s: float | None = CONFIG_BUDGET_S, progress: bool = True, stream=None) -> dict:
     """Frame time of every technique against output size, triangle count (the city, 1k → 2M) and light count
     (suzanne, 1 → 16); peak structure memory per technique from FrameResult.stats["structure_bytes"]. With the
@@ -805,7 +805,7 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
     mae_shadow), Cycles' time at the sample count matching each technique's error (`matched_cycles`), and the
     30× check at Cycles-`target_samples` (`_speedup_check`). `max_pixels`/`max_triangles`/`max_lights` drop
     the sweep points above them; `cycles_max_pixels` runs Cycles only at points with at most that many
-    pixels. Writes scaling.json, scaling.md and scaling.png (log–log, slope per curve) under `out_dir`.
+    pixels; `base_size` is the output size of the triangle and light sweeps. Writes scaling.json, scaling.md and scaling.png (log–log, slope per curve) under `out_dir`.
     `quick`: two tiny points per axis, one frame each, each technique in its cheap viewport mode with 128²
     maps, Cycles ladder SCALING_QUICK_CYCLES (a smoke test)."""
     import bpy
@@ -828,7 +828,7 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
     target_samples = int(target_samples)
     grid = SCALING_QUICK if quick else {"sizes": SCALING_SIZES, "triangles": SCALING_TRIANGLES,
                                         "lights": SCALING_LIGHTS}
-    base = SCALING_QUICK["sizes"][-1] if quick else SCALING_BASE_SIZE
+    base = SCALING_QUICK["sizes"][-1] if quick else (int(base_size[0]), int(base_size[1]))
     axes = (("pixels", _capped([(w * h, lambda r=(w, h): scene_lib.build("suzanne", resolution=r))
                                 for w, h in grid["sizes"]], max_pixels, "output size", "--max-pixels")),
             ("triangles", _capped([(n, lambda n=n: _city_scene(n, base)) for n in grid["triangles"]],
@@ -845,6 +845,7 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
                           "peer_seed": PEER_SEED, "max_pixels": cycles_max_pixels,
                           "speedup_bar": SCALING_SPEEDUP_BAR} if use_cycles else None,
                "caps": {"max_pixels": max_pixels, "max_triangles": max_triangles, "max_lights": max_lights},
+               "base_size": list(base),
                "timing_note": "ours: median wall clock of pipeline.render after a warm-up frame (time_ours); "
                               "Cycles: the shadowed render of a fresh pair (cycles_peer), after one untimed "
                               "1-sample warm-up pair per run; Cycles-matched: log–log interpolation of "
@@ -935,7 +936,11 @@ def _spp_text(m: dict, ladder) -> str:
 
 def scaling_markdown(results: dict) -> str:
     cy = results.get("cycles")
+    load = results["machine"].get("load_average")
     lines = [f"# Scaling ({machine_label(results['machine'])})", "",
+             f"Blender {results['machine'].get('blender', '?')}, {results['machine'].get('git_commit', '')}"
+             + (f"; load average at the start {load[0]:.1f} (shared machine: times are noisy)" if load else "")
+             + ".", "",
              f"Ours: median wall clock of up to {results['repeats']} timed frames after a warm-up frame"
              + (" (quick: each technique's viewport mode, 128² maps)." if results["quick"] else "."), ""]
     if cy:
@@ -959,7 +964,9 @@ def scaling_markdown(results: dict) -> str:
     for axis, data in results["axes"].items():
         rows = data["rows"]
         names = list(data["slopes"])
-        lines += [f"## Frame time (ms) against {axis}", "",
+        scene = "suzanne" if axis != "triangles" else "city"
+        where = f"{scene}" if axis == "pixels" or not rows else f"{scene}, {rows[0]['resolution'][0]}×{rows[0]['resolution'][1]}"
+        lines += [f"## Frame time (ms) against {axis} ({where})", "",
                   "| " + axis + " | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
         for r in rows:
             lines.append(f"| {r['x']} | " + " | ".join(_num(r["ms"].get(k), ".1f") for k in names) + " |")
