@@ -140,6 +140,7 @@ def test_scaling_quick_smoke(tmp_path):
             if c["best"]:
                 assert c["speedup"] == pytest.approx(c["target_ms"] / r["ms"][c["best"]])
             assert c["met"] == (c["best"] is not None and c["speedup"] >= 30.0)
+            assert c["closest"] == lo
     assert data["check_30x"]["points"] == 6
     md = (tmp_path / "scaling.md").read_text()
     assert "log–log slope" in md and "log–log interpolation" in md
