@@ -316,8 +316,18 @@ def cmd_bench(args) -> int:
     if args.scaling:
         from .measure import bench
         peers = [p for p in _csv_list(args.peers.lower()) if p not in ("none", "off")]
-        bench.run_scaling(args.out, techniques=_csv_list(args.techniques) or None, peers=peers,
-                          quick=args.quick, repeats=args.repeats, budget_s=args.budget or None)
+        try:
+            bench.run_scaling(args.out, techniques=_csv_list(args.techniques) or None, peers=peers,
+                              quick=args.quick, repeats=args.repeats, budget_s=args.budget or None,
+                              reference_samples=args.cycles_samples, target_samples=args.target_samples,
+                              cycles_ladder=_int_list(args.cycles_peer_samples, "--cycles-peer-samples",
+                                                      *CYCLES_SAMPLES_RANGE),
+                              max_pixels=args.max_pixels, max_triangles=args.max_triangles,
+                              max_lights=args.max_lights, cycles_max_pixels=args.cycles_max_pixels,
+                              base_size=tuple(args.base_size))
+        except ValueError as exc:
+            print(f"penumbra: {exc}", file=sys.stderr)
+            return 2
         print(f"wrote {args.out}/scaling.{{json,md,png}}")
         return 0
     if args.viewport:
@@ -492,9 +502,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="interactive latency instead: first and refined frame after a camera move, an object "
                         "move and a light edit (default scenes suzanne, balls, city)")
     b.add_argument("--scaling", action="store_true",
-                   help="frame time of every technique and of Cycles against output size (128² → 1920×1080), "
-                        "triangles (city, 1k → 2M) and lights (1 → 16), log–log plots with slopes")
+                   help="frame time of every technique and of Cycles (ladder --cycles-peer-samples; its time at "
+                        "each technique's error; the 30× check at --target-samples) against output size (128² → "
+                        "1920×1080), triangles (city, 1k → 2M) and lights (1 → 16), log–log plots with slopes")
     b.add_argument("--quick", action="store_true", help="with --scaling: two tiny points per axis, one frame")
+    for flag, what in (("--max-pixels", "output sizes"), ("--max-triangles", "triangle counts"),
+                       ("--max-lights", "light counts"), ("--cycles-max-pixels", "Cycles (reference and ladder)")):
+        b.add_argument(flag, type=ranged(int, 1), default=None,
+                       help=f"with --scaling: {what} only up to this many" + (" pixels" if "pixels" in flag else ""))
+    b.add_argument("--base-size", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
+                   default=[384, 384], help="with --scaling: output size of the triangle and light sweeps")
     b.add_argument("--viewport-size", type=ranged(int, *RESOLUTION_RANGE), nargs=2, metavar=("W", "H"),
                    default=[1280, 720], help="viewport size in pixels")
     b.add_argument("--study", choices=tuple(STUDIES),

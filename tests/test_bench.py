@@ -5,6 +5,7 @@ import io
 import json
 import math
 
+import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
@@ -92,7 +93,9 @@ def test_sweep_table():
 
 def test_scaling_quick_smoke(tmp_path):
     """`bench --scaling --quick`: every axis has its points, the sweeps built what they say (more triangles,
-    more lights, more pixels), slopes are finite, and the files are written."""
+    more lights, more pixels), slopes are finite, every point has its techniques' errors against the Cycles
+    reference, the Cycles ladder, a Cycles-matched time per technique and the 30× check, and the files are
+    written."""
     results = bench.run_scaling(str(tmp_path), techniques=["HARD", "PCSS"], peers=["cycles"], quick=True,
                                 progress=False)
     axes = results["axes"]
@@ -101,10 +104,72 @@ def test_scaling_quick_smoke(tmp_path):
     assert [r["resolution"] for r in px] == [[32, 32], [64, 64]]
     assert tris[0]["triangles"] < tris[1]["triangles"] and 1_000 <= tris[0]["triangles"] < 2_000
     assert [r["lights"] for r in lights] == [1, 2]
+    target = bench.SCALING_QUICK_CYCLES["target"]
     for data in axes.values():
-        assert set(data["slopes"]) == {"HARD", "PCSS", "Cycles"}
+        assert set(data["slopes"]) == {"HARD", "PCSS", f"Cycles-{target}"}
         assert all(math.isfinite(s) for s in data["slopes"].values())
+        assert all(math.isfinite(s) for s in data["matched_slopes"].values())
         assert all(r["ms"]["PCSS"] > 0 and r["bytes"]["PCSS"] > 0 for r in data["rows"])
     for name in ("scaling.json", "scaling.md", "scaling.png"):
         assert (tmp_path / name).stat().st_size > 0, name
-    assert "log–log slope" in (tmp_path / "scaling.md").read_text()
+    data = json.loads((tmp_path / "scaling.json").read_text())
+    ladder = list(bench.SCALING_QUICK_CYCLES["ladder"])
+    assert data["cycles"]["ladder"] == ladder and data["cycles"]["target_samples"] == target
+    for axis in data["axes"].values():
+        for r in axis["rows"]:
+            assert [c["samples"] for c in r["cycles"]] == ladder
+            assert all(c["time_ms"] > 0 and math.isfinite(c["mae_shadow"]) for c in r["cycles"]), r["cycles"]
+            errs = [c["mae_shadow"] for c in r["cycles"]]
+            times = [c["time_ms"] for c in r["cycles"]]
+            assert errs[0] > errs[-1]           # Cycles' noise: 1 spp is far worse than 16
+            for t in ("HARD", "PCSS"):
+                m, e = r["matched"][t], r["mae_shadow"][t]
+                assert math.isfinite(e) and math.isfinite(m["spp"]) and math.isfinite(m["time_ms"])
+                assert ladder[0] <= m["spp"] <= ladder[-1] and min(times) <= m["time_ms"] <= max(times)
+                assert min(errs) <= m["cycles_mae_shadow"] <= max(errs)
+                if m["clamped"] is None:        # inside the ladder: Cycles' error there is the technique's
+                    assert m["cycles_mae_shadow"] == pytest.approx(e, rel=1e-9)
+                assert m["speedup"] == pytest.approx(m["time_ms"] / r["ms"][t])
+            # Monotone: the technique with the larger error is matched by no more Cycles samples.
+            lo, hi = sorted(("HARD", "PCSS"), key=lambda t: r["mae_shadow"][t])
+            assert r["matched"][hi]["spp"] <= r["matched"][lo]["spp"]
+            c = r["check"]
+            assert c["target_ms"] == r["ms"][f"Cycles-{target}"] == times[ladder.index(target)]
+            ok = [t for t in ("HARD", "PCSS") if r["mae_shadow"][t] <= c["target_mae_shadow"]]
+            assert c["best"] == (min(ok, key=lambda t: r["ms"][t]) if ok else None)
+            if c["best"]:
+                assert c["speedup"] == pytest.approx(c["target_ms"] / r["ms"][c["best"]])
+            assert c["met"] == (c["best"] is not None and c["speedup"] >= 30.0)
+            assert c["closest"] == lo
+    assert data["check_30x"]["points"] == 6
+    md = (tmp_path / "scaling.md").read_text()
+    assert "log–log slope" in md and "log–log interpolation" in md
+    assert "**30× check**" in md and f"met at {data['check_30x']['met']} of 6 points" in md
+
+
+def test_matched_cycles_interpolates_log_log_and_clamps():
+    """Cycles' error ∝ spp^-½ and time ∝ spp: log–log interpolation recovers both exactly between ladder
+    counts; outside the ladder the match clamps; a noisy ladder (a count worse than the one before) still gives
+    a monotone match."""
+    spp = [1, 4, 16, 64, 256]
+    ladder = [(s, 3.0 * s, 0.4 / math.sqrt(s)) for s in spp]
+    m = bench.matched_cycles(ladder, 0.4 / math.sqrt(8))
+    assert m["spp"] == pytest.approx(8) and m["time_ms"] == pytest.approx(24) and m["clamped"] is None
+    assert bench.matched_cycles(ladder, 0.1)["spp"] == pytest.approx(16)          # a ladder count itself
+    assert bench.matched_cycles(ladder, 1.0) == {"spp": 1, "time_ms": 3.0, "cycles_mae_shadow": 0.4,
+                                                 "clamped": "below"}
+    top = bench.matched_cycles(ladder, 0.001)
+    assert top["spp"] == 256 and top["time_ms"] == 768 and top["clamped"] == "above"
+    noisy = [(1, 10.0, 0.4), (4, 12.0, 0.2), (16, 11.0, 0.25), (64, 40.0, 0.05)]
+    errors = np.geomspace(0.5, 0.03, 40)
+    got = [bench.matched_cycles(noisy, e) for e in errors]
+    assert all(a["spp"] <= b["spp"] and a["time_ms"] <= b["time_ms"] for a, b in zip(got, got[1:]))
+    assert all(1 <= g["spp"] <= 64 for g in got)
+    assert math.isnan(bench.matched_cycles(ladder, float("nan"))["spp"])
+
+
+def test_scaling_refuses_bad_caps_and_targets(tmp_path):
+    with pytest.raises(ValueError, match="--max-pixels 100 leaves no output size to run"):
+        bench.run_scaling(str(tmp_path), techniques=["HARD"], max_pixels=100, progress=False)
+    with pytest.raises(ValueError, match="target samples 32 is not in the Cycles ladder 1,4,16,64,256"):
+        bench.run_scaling(str(tmp_path), techniques=["HARD"], target_samples=32, progress=False)

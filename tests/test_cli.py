@@ -49,6 +49,7 @@ RENDER = ["render", "--scene", "plane", "--out", "x.exr"]
     (["bench", "--out", "o", "--cycles-samples", "1,4,16"],
      "the Cycles peer's list of counts is now --cycles-peer-samples"),
     (["bench", "--out", "o", "--repeats", "0"], "argument --repeats: 0 is out of range (≥ 1)"),
+    (["bench", "--scaling", "--out", "o", "--max-pixels", "0"], "argument --max-pixels: 0 is out of range (≥ 1)"),
 ])
 def test_bad_numbers_are_refused_with_the_allowed_range(argv, expected, capsys):
     code, out, err = _run(argv, capsys)

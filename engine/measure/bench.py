@@ -695,7 +695,8 @@ SCALING_TRIANGLES = (1_000, 10_000, 100_000, 500_000, 2_000_000)
 SCALING_LIGHTS = (1, 2, 4, 8, 16)
 SCALING_QUICK = {"sizes": ((32, 32), (64, 64)), "triangles": (1_000, 4_000), "lights": (1, 2)}
 SCALING_BASE_SIZE = (384, 384)          # output size of the triangle and light sweeps
-SCALING_CYCLES_SAMPLES = 16
+SCALING_QUICK_CYCLES = {"ladder": (1, 4, 16), "target": 16, "reference": 64}
+SCALING_SPEEDUP_BAR = 30.0              # issue 14: at Cycles-64's error, the fastest technique ≥ 30× faster
 
 
 def _city_scene(triangles: int, resolution):
@@ -736,14 +737,92 @@ def _log_slope(xs, ys) -> float:
     return float(np.polyfit(lx, ly, 1)[0])
 
 
+def matched_cycles(ladder, error: float) -> dict:
+    """Cycles' sample count and shadowed-render time at mae_shadow `error`, from a measured ladder of
+    (samples, time_ms, mae_shadow): log–log interpolation of error against samples, and of time against samples,
+    between the two ladder counts whose errors bracket `error`. The ladder is made monotone first (error
+    non-increasing by a running minimum, time non-decreasing by a running maximum: one noisy Cycles image can
+    score worse than the one before it). Outside the ladder the match is clamped to its ends: "above" when
+    `error` is below the top count's error (Cycles needs more samples than the ladder has: its time is a lower
+    bound), "below" when it is above the lowest count's (Cycles' cheapest image is already as good)."""
+    nan = float("nan")
+    pts = sorted((int(s), float(t), float(e)) for s, t, e in ladder
+                 if s > 0 and _finite(t) and t > 0 and _finite(e))
+    if not pts or not _finite(error):
+        return {"spp": nan, "time_ms": nan, "cycles_mae_shadow": nan, "clamped": None}
+    tiny = 1e-12                                    # a zero error would have no logarithm
+    spp = [p[0] for p in pts]
+    times = np.maximum.accumulate([p[1] for p in pts])
+    errs = np.minimum.accumulate([max(p[2], tiny) for p in pts])
+    e = max(float(error), tiny)
+    if e >= errs[0]:
+        return {"spp": float(spp[0]), "time_ms": float(times[0]), "cycles_mae_shadow": float(errs[0]),
+                "clamped": "below" if e > errs[0] else None}
+    if e < errs[-1]:
+        return {"spp": float(spp[-1]), "time_ms": float(times[-1]), "cycles_mae_shadow": float(errs[-1]),
+                "clamped": "above"}
+    i = next(k for k in range(len(pts) - 1) if errs[k + 1] <= e)      # errs[i] > e ≥ errs[i + 1]
+    u = math.log(errs[i] / e) / math.log(errs[i] / errs[i + 1])
+    return {"spp": float(math.exp(math.log(spp[i]) + u * math.log(spp[i + 1] / spp[i]))),
+            "time_ms": float(math.exp(math.log(times[i]) + u * math.log(times[i + 1] / times[i]))),
+            "cycles_mae_shadow": e, "clamped": None}
+
+
+def _speedup_check(row: dict, target_samples: int, bar: float = SCALING_SPEEDUP_BAR) -> dict:
+    """At Cycles-`target_samples`' error: our fastest technique with mae_shadow ≤ it, and its speed-up over
+    that Cycles render measured at the same point."""
+    target = next(c for c in row["cycles"] if c["samples"] == target_samples)
+    limit = target["mae_shadow"]
+    ok = [t for t, e in row["mae_shadow"].items() if _finite(e) and _finite(limit) and e <= limit]
+    best = min(ok, key=lambda t: row["ms"][t]) if ok else None
+    speedup = target["time_ms"] / row["ms"][best] if best is not None and row["ms"][best] > 0 else None
+    scored = [t for t, e in row["mae_shadow"].items() if _finite(e)]
+    closest = min(scored, key=lambda t: row["mae_shadow"][t]) if scored else None     # when none is as good
+    return {"target_samples": target_samples, "target_mae_shadow": limit, "target_ms": target["time_ms"],
+            "best": best, "best_ms": row["ms"][best] if best else None,
+            "best_mae_shadow": row["mae_shadow"][best] if best else None, "speedup": speedup,
+            "closest": closest, "closest_mae_shadow": row["mae_shadow"][closest] if closest else None,
+            "bar": bar, "met": bool(speedup is not None and speedup >= bar)}
+
+
+def _check_summary(axes: dict) -> dict:
+    """The 30× check over every point of every axis that ran Cycles."""
+    checks = [(axis, r["x"], r["check"]) for axis, d in axes.items() for r in d["rows"] if "check" in r]
+    speedups = [c["speedup"] for _, _, c in checks if _finite(c["speedup"])]
+    return {"points": len(checks), "met": sum(c["met"] for _, _, c in checks),
+            "missed": [f"{a}={x}" for a, x, c in checks if not c["met"]],
+            "none_as_accurate": sum(c["best"] is None for _, _, c in checks),
+            "min_speedup": min(speedups) if speedups else None,
+            "max_speedup": max(speedups) if speedups else None}
+
+
+def _capped(points, cap, what: str, flag: str):
+    """The sweep points whose size is ≤ `cap` (all when None); a ValueError when none is left."""
+    if cap is None:
+        return points
+    kept = [p for p in points if p[0] <= cap]
+    if not kept:
+        raise ValueError(f"{flag} {cap} leaves no {what} to run (smallest {min(p[0] for p in points)})")
+    return kept
+
+
 def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = False, repeats: int = 3,
-                cycles_samples: int = SCALING_CYCLES_SAMPLES, budget_s: float | None = CONFIG_BUDGET_S,
-                progress: bool = True, stream=None) -> dict:
-    """Frame time of every technique (and of Cycles at `cycles_samples`) against output size, triangle
-    count (the city, 1k → 2M) and light count (suzanne, 1 → 16); peak structure memory per technique from
-    FrameResult.stats["structure_bytes"]. Writes scaling.json, scaling.md and scaling.png (log–log, slope
-    per curve) under `out_dir`. `quick`: two tiny points per axis, one frame each, each technique in its cheap
-    viewport mode with 128² maps (a smoke test)."""
+                reference_samples: int = DEFAULT_REFERENCE_SAMPLES, cycles_ladder=CYCLES_SAMPLES,
+                target_samples: int = TARGET_SAMPLES, max_pixels: int | None = None,
+                max_triangles: int | None = None, max_lights: int | None = None,
+                cycles_max_pixels: int | None = None, base_size=SCALING_BASE_SIZE, cache_dir=None,
+                budget_s: float | None = CONFIG_BUDGET_S, progress: bool = True, stream=None) -> dict:
+    """Frame time of every technique against output size, triangle count (the city, 1k → 2M) and light count
+    (suzanne, 1 → 16); peak structure memory per technique from FrameResult.stats["structure_bytes"]. With the
+    Cycles peer, per point: a Cycles reference at `reference_samples` (cached by content), every technique's
+    mae_shadow against it, Cycles fresh at each count of `cycles_ladder` (time of the shadowed render and its
+    mae_shadow), Cycles' time at the sample count matching each technique's error (`matched_cycles`), and the
+    30× check at Cycles-`target_samples` (`_speedup_check`). `max_pixels`/`max_triangles`/`max_lights` drop
+    the sweep points above them; `cycles_max_pixels` runs Cycles only at points with at most that many
+    pixels; `base_size` is the output size of the triangle and light sweeps. Writes scaling.json, scaling.md
+    and scaling.png (log–log, slope per curve) under `out_dir`.
+    `quick`: two tiny points per axis, one frame each, each technique in its cheap viewport mode with 128²
+    maps, Cycles ladder SCALING_QUICK_CYCLES (a smoke test)."""
     import bpy
 
     from . import scenes as scene_lib
@@ -754,27 +833,55 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
     stream = stream or sys.stderr
     technique_ids, peers = _checked_choices(techniques, peers, TECHNIQUES)
     if quick:
-        repeats, cycles_samples = 1, 1
+        repeats = 1
+        cycles_ladder, target_samples = SCALING_QUICK_CYCLES["ladder"], SCALING_QUICK_CYCLES["target"]
+        reference_samples = SCALING_QUICK_CYCLES["reference"]
+    ladder = sorted({int(s) for s in cycles_ladder})
+    if "cycles" in peers and int(target_samples) not in ladder:
+        raise ValueError(f"target samples {target_samples} is not in the Cycles ladder "
+                         f"{','.join(map(str, ladder))}")
+    target_samples = int(target_samples)
     grid = SCALING_QUICK if quick else {"sizes": SCALING_SIZES, "triangles": SCALING_TRIANGLES,
                                         "lights": SCALING_LIGHTS}
-    base = SCALING_QUICK["sizes"][-1] if quick else SCALING_BASE_SIZE
-    axes = (("pixels", [(w * h, lambda r=(w, h): scene_lib.build("suzanne", resolution=r)) for w, h in grid["sizes"]]),
-            ("triangles", [(n, lambda n=n: _city_scene(n, base)) for n in grid["triangles"]]),
-            ("lights", [(n, lambda n=n: _lights_scene(n, base)) for n in grid["lights"]]))
+    base = SCALING_QUICK["sizes"][-1] if quick else (int(base_size[0]), int(base_size[1]))
+    axes = (("pixels", _capped([(w * h, lambda r=(w, h): scene_lib.build("suzanne", resolution=r))
+                                for w, h in grid["sizes"]], max_pixels, "output size", "--max-pixels")),
+            ("triangles", _capped([(n, lambda n=n: _city_scene(n, base)) for n in grid["triangles"]],
+                                  max_triangles, "triangle count", "--max-triangles")),
+            ("lights", _capped([(n, lambda n=n: _lights_scene(n, base)) for n in grid["lights"]],
+                               max_lights, "light count", "--max-lights")))
+    ref_kwargs = {"cache_dir": cache_dir} if cache_dir is not None else {}
     os.makedirs(out_dir, exist_ok=True)
+    use_cycles = "cycles" in peers
     results = {"machine": machine_info(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "quick": bool(quick),
-               "repeats": int(repeats), "cycles_samples": int(cycles_samples) if "cycles" in peers else None,
-               "timing_note": "median wall clock of pipeline.render after a warm-up frame (time_ours); Cycles: "
-                              "half the shadowed/unshadowed pair at cycles_samples",
+               "repeats": int(repeats),
+               "cycles": {"ladder": ladder, "target_samples": target_samples,
+                          "reference_samples": int(reference_samples), "reference_seed": REFERENCE_SEEDS[0],
+                          "peer_seed": PEER_SEED, "max_pixels": cycles_max_pixels,
+                          "speedup_bar": SCALING_SPEEDUP_BAR} if use_cycles else None,
+               "caps": {"max_pixels": max_pixels, "max_triangles": max_triangles, "max_lights": max_lights},
+               "base_size": list(base),
+               "timing_note": "ours: median wall clock of pipeline.render after a warm-up frame (time_ours); "
+                              "Cycles: the shadowed render of a fresh pair (cycles_peer), after one untimed "
+                              "1-sample warm-up pair per run; Cycles-matched: log–log interpolation of "
+                              "mae_shadow and of time against samples on the ladder (matched_cycles)",
                "axes": {}}
     started = time.perf_counter()
+    warmed = False
     for axis, points in axes:
         rows = []
         for x, make in points:
             scene = make()
             snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
-            row = {"x": x, "resolution": [snap.camera.width, snap.camera.height],
-                   "triangles": int(snap.triangle_count), "lights": len(snap.lights), "ms": {}, "bytes": {}}
+            w, h = snap.camera.width, snap.camera.height
+            row = {"x": x, "resolution": [w, h], "triangles": int(snap.triangle_count),
+                   "lights": len(snap.lights), "ms": {}, "bytes": {}, "mae_shadow": {}}
+            ref = None
+            if use_cycles and (cycles_max_pixels is None or w * h <= cycles_max_pixels):
+                with _stdout_to_stderr(True):
+                    ref = reference.cycles_visibility(scene, samples=reference_samples, seed=REFERENCE_SEEDS[0],
+                                                      width=w, height=h, **ref_kwargs)
+                row["reference"] = {"samples": ref.samples, "cached": ref.cached, "seconds_pair": ref.seconds}
             for tid in technique_ids:
                 settings = RenderSettings(technique=tid)
                 if quick:               # each technique's cheap viewport mode, small maps
@@ -782,20 +889,43 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
                 timing = time_ours(snap, settings, repeats, budget_s=budget_s)
                 row["ms"][tid] = timing["time_ms"]
                 row["bytes"][tid] = int(sum(timing["result"].stats.get("structure_bytes", {}).values()))
-            if "cycles" in peers:
+                if ref is not None:
+                    v = timing["result"].passes["Visibility"][..., 0]
+                    row["mae_shadow"][tid] = metrics.compare(v, ref.visibility, ref.mask)["mae_shadow"]
+            if ref is not None:
                 with _stdout_to_stderr(True):
-                    peer = reference.cycles_visibility(scene, samples=cycles_samples, seed=PEER_SEED,
-                                                       use_cache=False)
-                row["ms"]["Cycles"] = peer.seconds * 500.0
+                    if not warmed:      # the first Cycles render of a process loads its kernels: untimed
+                        results["cycles"]["warmup_ms"] = cycles_peer(scene, 1, w, h, ref)["time_ms"]
+                        warmed = True
+                    peers_ = [(spp, cycles_peer(scene, spp, w, h, ref, repeats=repeats, budget_s=PEER_BUDGET_S))
+                              for spp in ladder]
+                row["cycles"] = [{"samples": spp, "time_ms": p["time_ms"], "mae_shadow": p["metrics"]["mae_shadow"]}
+                                 for spp, p in peers_]
+                row["ms"][f"Cycles-{target_samples}"] = next(c["time_ms"] for c in row["cycles"]
+                                                             if c["samples"] == target_samples)
+                points_ = [(c["samples"], c["time_ms"], c["mae_shadow"]) for c in row["cycles"]]
+                row["matched"] = {}
+                for tid in technique_ids:
+                    m = matched_cycles(points_, row["mae_shadow"][tid])
+                    m["speedup"] = m["time_ms"] / row["ms"][tid] if _finite(m["time_ms"]) and row["ms"][tid] > 0 \
+                        else None
+                    row["matched"][tid] = m
+                row["check"] = _speedup_check(row, target_samples)
             rows.append(row)
             if progress:
                 stream.write(f"scaling {axis}={x}: " + ", ".join(f"{k} {v:.0f} ms" for k, v in row["ms"].items())
-                             + "\n")
+                             + ("" if "check" not in row else
+                                f"; 30× check: {row['check']['best'] or 'none'} "
+                                f"{_num(row['check']['speedup'], '.1f')}×") + "\n")
                 stream.flush()
-        names = list(rows[0]["ms"]) if rows else []
-        results["axes"][axis] = {"rows": rows, "slopes": {k: _log_slope([r["x"] for r in rows],
-                                                                        [r["ms"].get(k) for r in rows])
-                                                          for k in names}}
+        names = list(dict.fromkeys(k for r in rows for k in r["ms"]))     # Cycles may be capped at some points
+        xs = [r["x"] for r in rows]
+        results["axes"][axis] = {
+            "rows": rows,
+            "slopes": {k: _log_slope(xs, [r["ms"].get(k) for r in rows]) for k in names},
+            "matched_slopes": {t: _log_slope(xs, [r.get("matched", {}).get(t, {}).get("time_ms") for r in rows])
+                               for t in technique_ids} if use_cycles else {}}
+    results["check_30x"] = _check_summary(results["axes"])
     results["wall_seconds"] = time.perf_counter() - started
     write_atomic(os.path.join(out_dir, "scaling.json"),
                  json.dumps(_clean(results), indent=1, allow_nan=False, default=str))
@@ -804,46 +934,140 @@ def run_scaling(out_dir, *, techniques=None, peers=("cycles",), quick: bool = Fa
     return results
 
 
+def _spp_text(m: dict, ladder) -> str:
+    if not _finite(m.get("spp")):
+        return "–"
+    if m.get("clamped") == "above":
+        return f"≥{ladder[-1]}"
+    if m.get("clamped") == "below":
+        return f"≤{ladder[0]}"
+    return f"{m['spp']:.1f}"
+
+
 def scaling_markdown(results: dict) -> str:
-    lines = [f"# Scaling ({machine_label(results['machine'])})", ""]
+    cy = results.get("cycles")
+    load = results["machine"].get("load_average")
+    lines = [f"# Scaling ({machine_label(results['machine'])})", "",
+             f"Blender {results['machine'].get('blender', '?')}, {results['machine'].get('git_commit', '')}"
+             + (f"; load average at the start {load[0]:.1f} (shared machine: times are noisy)" if load else "")
+             + ".", "",
+             f"Ours: median wall clock of up to {results['repeats']} timed frames after a warm-up frame"
+             + (" (quick: each technique's viewport mode, 128² maps)." if results["quick"] else "."), ""]
+    if cy:
+        ladder, spp = cy["ladder"], cy["target_samples"]
+        c = results["check_30x"]
+        lines += [f"Cycles: time of the shadowed render of a fresh pair (seed {cy['peer_seed']}) at "
+                  f"{', '.join(map(str, ladder))} spp; every mae_shadow is against Cycles {cy['reference_samples']} "
+                  f"spp (seed {cy['reference_seed']}). **Cycles-matched** = Cycles' time at the sample count whose "
+                  f"mae_shadow equals the technique's, by log–log interpolation of mae_shadow against spp and of "
+                  f"time against spp between the two ladder counts that bracket it (ladder made monotone first); "
+                  f"≥{ladder[-1]}: more accurate than Cycles-{ladder[-1]} (its time is a lower bound), "
+                  f"≤{ladder[0]}: no better than Cycles-{ladder[0]}."
+                  + (f" Cycles runs only at points of at most {cy['max_pixels']} pixels." if cy["max_pixels"] else ""),
+                  "",
+                  f"**{cy['speedup_bar']:.0f}× check** (at Cycles-{spp}'s mae_shadow, our fastest technique at least "
+                  f"{cy['speedup_bar']:.0f}× faster than Cycles-{spp} in the same run): "
+                  + ("no point ran Cycles" if not c["points"] else
+                     f"{'met' if c['met'] == c['points'] else 'missed'}: met at {c['met']} of {c['points']} points"
+                     + (f", speed-ups {c['min_speedup']:.1f}× – {c['max_speedup']:.1f}×"
+                        if _finite(c["min_speedup"]) else "")
+                     + (f"; missed at {', '.join(c['missed'])}" if c["missed"] else "")
+                     + (f"; at {c['none_as_accurate']} of them no technique reaches Cycles-{spp}'s mae_shadow"
+                        if c.get("none_as_accurate") else "")), ""]
     for axis, data in results["axes"].items():
         rows = data["rows"]
         names = list(data["slopes"])
-        lines += [f"## Frame time (ms) against {axis}", "",
+        scene = "suzanne" if axis != "triangles" else "city"
+        if axis != "pixels" and rows:
+            scene += f", {rows[0]['resolution'][0]}×{rows[0]['resolution'][1]}"
+        lines += [f"## Frame time (ms) against {axis} ({scene})", "",
                   "| " + axis + " | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
         for r in rows:
             lines.append(f"| {r['x']} | " + " | ".join(_num(r["ms"].get(k), ".1f") for k in names) + " |")
         lines.append("| log–log slope | " + " | ".join(_num(data["slopes"][k], ".2f") for k in names) + " |")
-        peak = {k: max(r["bytes"].get(k, 0) for r in rows) for k in names if k != "Cycles"}
+        peak = {k: max(r["bytes"].get(k, 0) for r in rows) for k in names if not k.startswith("Cycles")}
         lines += ["", "Peak structure memory (MiB): " + ", ".join(f"{k} {v / 2**20:.1f}" for k, v in peak.items()),
                   ""]
+        if not cy or not any("matched" in r for r in rows):
+            continue
+        ours = [k for k in names if not k.startswith("Cycles")]
+        lines += [f"### Error and Cycles-matched time against {axis}", "",
+                  f"| {axis} | technique | ms | mae_shadow | matched spp | Cycles ms at matched spp | speed-up |",
+                  "|---|---|---:|---:|---:|---:|---:|"]
+        for r in rows:
+            for t in ours if "matched" in r else ():
+                m = r["matched"][t]
+                lines.append(f"| {r['x']} | {t} | {_num(r['ms'][t], '.1f')} | {_num(r['mae_shadow'][t], '.4f')} | "
+                             f"{_spp_text(m, cy['ladder'])} | {_num(m['time_ms'], '.1f')} | "
+                             f"{_num(m['speedup'], '.1f')}× |")
+        lines += ["", "Log–log slope of the Cycles-matched time: " + ", ".join(
+            f"{t} {_num(data['matched_slopes'].get(t), '.2f')}" for t in ours) + ".",
+                  "", "Cycles ladder (ms / mae_shadow):", "",
+                  f"| {axis} | reference | " + " | ".join(f"{s} spp" for s in cy["ladder"]) + " |",
+                  "|---" * (len(cy["ladder"]) + 2) + "|"]
+        for r in rows:
+            if "cycles" in r:
+                ref = r["reference"]
+                lines.append(f"| {r['x']} | {ref['samples']} spp{' (cached)' if ref['cached'] else ''} | " + " | ".join(
+                    f"{_num(c['time_ms'], '.0f')} / {_num(c['mae_shadow'], '.4f')}" for c in r["cycles"]) + " |")
+        spp = cy["target_samples"]
+        lines += ["", f"{cy['speedup_bar']:.0f}× check against {axis}:", "",
+                  f"| {axis} | Cycles-{spp} mae_shadow | Cycles-{spp} ms | fastest of ours with mae_shadow ≤ it | "
+                  f"its mae_shadow | its ms | speed-up | met | most accurate of ours (mae_shadow) |",
+                  "|---|---:|---:|---|---:|---:|---:|---|---|"]
+        for r in rows:
+            if "check" in r:
+                c = r["check"]
+                lines.append(f"| {r['x']} | {_num(c['target_mae_shadow'], '.4f')} | {_num(c['target_ms'], '.0f')} | "
+                             f"{c['best'] or 'none'} | {_num(c['best_mae_shadow'], '.4f')} | "
+                             f"{_num(c['best_ms'], '.1f')} | {_num(c['speedup'], '.1f')}× | "
+                             f"{'yes' if c['met'] else 'no'} | {c.get('closest') or '–'} "
+                             f"({_num(c.get('closest_mae_shadow'), '.4f')}) |")
+        lines.append("")
+    lines.append(f"Total wall time: {results.get('wall_seconds', float('nan')):.0f} s")
     return "\n".join(lines) + "\n"
 
 
 def plot_scaling(results: dict, path: str) -> None:
-    """One log–log panel per axis: frame time per technique (and Cycles), slope in the legend."""
+    """One log–log panel per axis: frame time per technique (solid), Cycles at the spp matching that
+    technique's error (dashed, same colour) and Cycles at the check's sample count (black, dotted); slopes in
+    the legend."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     axes = results["axes"]
-    fig = Figure(figsize=(5.5 * len(axes), 4.5), dpi=100)
+    fig = Figure(figsize=(6 * len(axes), 7), dpi=100)
     FigureCanvasAgg(fig)
     for i, (axis, data) in enumerate(axes.items()):
         ax = fig.add_subplot(1, len(axes), i + 1)
+        colours = {}
         for name, slope in data["slopes"].items():
             pts = [(r["x"], r["ms"][name]) for r in data["rows"] if _finite(r["ms"].get(name))
                    and r["ms"][name] > 0]
+            if not pts:
+                continue
+            xs, ys = zip(*pts)
+            label = f"{name} (slope {slope:.2f})" if _finite(slope) else name
+            if name.startswith("Cycles"):
+                ax.plot(xs, ys, ":", color="black", marker="s", ms=3, label=label)
+            else:
+                colours[name] = ax.plot(xs, ys, "-", marker="o", ms=3, label=label)[0].get_color()
+        for name, colour in colours.items():
+            pts = [(r["x"], r["matched"][name]["time_ms"]) for r in data["rows"] if "matched" in r
+                   and _finite(r["matched"][name]["time_ms"])]
             if pts:
                 xs, ys = zip(*pts)
-                ax.plot(xs, ys, "--" if name == "Cycles" else "-", marker="o", ms=3,
-                        label=f"{name} (slope {slope:.2f})" if _finite(slope) else name)
+                slope = data["matched_slopes"].get(name)
+                ax.plot(xs, ys, "--", color=colour, marker="x", ms=3, alpha=0.8,
+                        label=f"Cycles ≈ {name}'s error" + (f" (slope {slope:.2f})" if _finite(slope) else ""))
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(axis)
         ax.set_ylabel("frame time (ms)")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.suptitle(f"Penumbra scaling — {machine_label(results['machine'])}", fontsize=9)
+        ax.legend(fontsize=6, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.13))   # below: 17 curves
+    fig.suptitle(f"Penumbra scaling — {machine_label(results['machine'])}; dashed: Cycles at the spp matching "
+                 f"each technique's mae_shadow (log–log interpolation on the ladder)", fontsize=9)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
