@@ -68,6 +68,13 @@ BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK
 REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
 LOQ_DEPTH_JUMP = 0.05           # relative light-depth jump at which the LOQ smoothing stops (a discontinuity)
 
+# Mesa's llvmpipe ends a shader's loops once they have run 65535 iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS,
+# shared by every loop of an invocation): a gather over more micro-occluders stopped part-way, and every loop
+# after it ran once (the bitmask count saw one row: black). That was b = ∞ on big_light (~573k per pixel). One
+# dispatch gathers at most CHUNK_CELLS per pixel; a SIMD group may run two gathers' shares back to back
+# (blending), so twice this plus the classification's and resolve's short loops stays below the limit.
+CHUNK_CELLS = 16384
+
 
 def sample_pattern(accumulation: str) -> tuple[int, tuple, tuple]:
     """(N, jitter_x per row parity, jitter_y per column parity): sample (column k, row l) of the N×N bitmask
@@ -133,6 +140,27 @@ def sample_colors(texture: np.ndarray, accumulation: str) -> np.ndarray:
 
 def luminance(rgb) -> np.ndarray:
     return np.asarray(rgb, np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def gather_cells_bound(map_size, layers: int, quad_extra: int, budget_mode: int, force_level: int,
+                       budget_max: float, blend: bool, levels: int) -> int:
+    """Most micro-occluders one pixel's gathers can visit (visibility.comp gather_cells, all layers, both
+    levels when blending): the search area is clamped to the map, and a budget b keeps the integer level's
+    area within b cells per side; a blended ⌊ℓ⌋ may be up to two levels finer than that (the smoothed ℓ falls
+    at most one below the pixel's own), ⌈ℓ⌉ one."""
+    def cells(level, per_side=None):
+        n = [((s - 1) >> level) + 1 + quad_extra for s in map_size]
+        if per_side is not None:
+            n = [min(v, per_side) for v in n]
+        return n[0] * n[1]
+    if force_level >= 0:
+        return layers * cells(min(force_level, levels - 1))
+    if budget_mode == BUDGET_UNBOUNDED:
+        return layers * cells(0)
+    b = int(np.ceil(budget_max))
+    if not blend:
+        return layers * cells(0, b)
+    return layers * (cells(0, 4 * b + 2 + quad_extra) + cells(min(1, levels - 1), 2 * b + 2 + quad_extra))
 
 
 def _mask_rows(valid: np.ndarray) -> list[int]:
@@ -296,8 +324,24 @@ class Backprojection(Technique):
                 lc.stats.update({"level_drop_max": float(drop.max()) if bp.any() else 0.0,
                                  "level_change_max": float(np.abs(drop).max()) if bp.any() else 0.0})
         with frame.timings.stage("bp_gather"):
-            frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
-                           defines=defines)
+            budget_max = max(float(o["bp_budget"]), float(o["bp_budget_border"]) if budget_mode == BUDGET_BORDER
+                             else 0.0)
+            worst = gather_cells_bound((w, h), len(maps), int(primitive == PRIMITIVE_MICROQUAD), budget_mode,
+                                       force, budget_max, blend, levels)
+            chunks = 1 if light.is_delta else -(-worst // CHUNK_CELLS)
+            if chunks == 1:
+                frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
+                               defines=defines)
+            else:
+                slots = 2 if blend else 1
+                state = frame.reserved_buffer(size[0] * size[1] * slots * (bits + 1) * 4)
+                for k in range(chunks):
+                    frame.progress.check()
+                    frame.dispatch("backprojection/visibility.comp",
+                                   {**uniforms, "u_chunk": k, "u_chunks": chunks, "u_chunk_cells": CHUNK_CELLS},
+                                   samplers=samplers, images=images, defines={**defines, "CHUNKED": 1},
+                                   buffers={4: state})
+            lc.stats["gather_dispatches"] = chunks
         if filter_passes:
             with frame.timings.stage("bp_filter"):
                 tmp = frame.texture(size, 1)
