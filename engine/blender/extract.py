@@ -633,6 +633,45 @@ def _role(ob) -> str:
     return str(getattr(props, "role", "BOTH")) if props is not None else "BOTH"
 
 
+def _importance(ob) -> float:
+    """Budget importance 0 … 1 (BACKPROJECTION's importance budget map): the custom property
+    `penumbra_importance` where the object has one (scripts, linked data), else its Penumbra setting. Read
+    from the original object: the depsgraph's evaluated copies answer 0 for both."""
+    ob = getattr(ob, "original", None) or ob
+    value = ob.get("penumbra_importance") if hasattr(ob, "get") else None
+    if value is None:
+        props = getattr(ob, "penumbra", None)
+        value = getattr(props, "importance", 0.0) if props is not None else 0.0
+    try:
+        return min(max(float(value), 0.0), 1.0)
+    except (TypeError, ValueError):
+        raise ValueError(f"Object '{ob.name}': custom property 'penumbra_importance' must be a number "
+                         f"0 … 1, got {value!r}") from None
+
+
+def setting_images(scene) -> dict:
+    """The images settings name, read here where bpy is: BACKPROJECTION's importance image (bp_budget_image)
+    when its budget map is IMPORTANCE, as a Blender image datablock's pixels or a blend-relative file. A
+    plain file path the technique reads itself; a name that is neither is an error naming the setting."""
+    props = getattr(scene, "penumbra", None)
+    name = str(getattr(props, "bp_budget_image", "") or "")
+    if not name or getattr(props, "bp_budget_map", "") != "IMPORTANCE":
+        return {}
+    import bpy
+    from ..core import importance
+    image = bpy.data.images.get(name)
+    if image is not None:
+        w, h = image.size
+        channels = image.channels
+        if w == 0 or h == 0:
+            raise ValueError(f"Setting 'bp_budget_image': image '{name}' has no pixels (not loaded or empty)")
+        pixels = np.empty(w * h * channels, np.float32)
+        image.pixels.foreach_get(pixels)
+        return {name: importance.grey(pixels.reshape(h, w, channels))}
+    path = bpy.path.abspath(name)
+    return {name: importance.load_grey(path, "bp_budget_image")}
+
+
 def extract(depsgraph, scene=None, *, width: int | None = None, height: int | None = None) -> SceneSnapshot:
     """Snapshot of everything visible in `depsgraph` (render or viewport). `width`/`height` override the
     camera resolution (otherwise render resolution × percentage)."""
@@ -705,32 +744,35 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
 
     # A scene without lights is not an error here; the pipeline warns (once) when it renders it.
     return SceneSnapshot(objects=objects, lights=lights, camera=camera, name=scene.name, warnings=warnings,
-                         textures=textures, **geometry)
+                         textures=textures, images=setting_images(scene), **geometry)
 
 
-def object_info(ob, parent) -> tuple[str, bool, bool, str]:
-    """(name, caster, receiver, role) of a mesh object as one instance sees it, `parent` its instancer (None
-    when not instanced): what the final render and the viewport both read. Cycles ANDs the instancer's ray
-    visibility into the instance's; an instance whose own Shadow Role is Both takes its instancer's."""
+def object_info(ob, parent) -> tuple[str, bool, bool, str, float]:
+    """(name, caster, receiver, role, importance) of a mesh object as one instance sees it, `parent` its
+    instancer (None when not instanced): what the final render and the viewport both read. Cycles ANDs the
+    instancer's ray visibility into the instance's; an instance whose own Shadow Role is Both takes its
+    instancer's, one without importance its instancer's."""
     caster = bool(ob.visible_shadow)
     receiver = bool(ob.visible_camera)
     role = _role(ob)
+    importance = _importance(ob)
     if parent is not None and parent != ob:
         caster = caster and bool(parent.visible_shadow)
         receiver = receiver and bool(parent.visible_camera)
         if role == "BOTH":
             role = _role(parent)
-    return ob.name, caster, receiver, role
+        if importance == 0.0:
+            importance = _importance(parent)
+    return ob.name, caster, receiver, role, importance
 
 
 def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, material_cache, table_cache,
                   warn_once) -> tuple[int, int]:
-    _, caster, receiver, role = object_info(ob, parent)
-    okey = (ob.name, caster, receiver, role)
+    okey = object_info(ob, parent)
     oid = object_index.get(okey)
     if oid is None:
         oid = object_index[okey] = len(objects)
-        objects.append(ObjectInfo(name=ob.name, caster=caster, receiver=receiver, role=role))
+        objects.append(ObjectInfo(*okey))
 
     mats = [slot.material for slot in ob.material_slots]
     if not mats:

@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.shader_constants import (BUDGET_BORDER, BUDGET_UNBOUNDED, BUDGET_UNIFORM, CLASS_BACKPROJECTED,
+from ..core import importance
+from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM, CLASS_BACKPROJECTED,
                                      CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
                                      REFINE_MSSM, REFINE_NONE, REFINE_YSM)
@@ -60,8 +61,12 @@ REFINEMENTS = (("NONE", "None", "Search the whole pyramid ∩ near plane; no lit
 BUDGET_MAPS = (("UNIFORM", "Uniform", "The same budget b at every pixel"),
                ("BORDER", "Border falloff", "b at the image centre falling linearly to the border budget at the "
                 "left and right borders (Schwarz & Stamminger 2008, Fig. 1d)"),
-               ("UNBOUNDED", "Unbounded (b = ∞)", "Level 0 always, no blending: the paper's baseline"))
-BUDGET_MODE = {"UNIFORM": BUDGET_UNIFORM, "BORDER": BUDGET_BORDER, "UNBOUNDED": BUDGET_UNBOUNDED}
+               ("UNBOUNDED", "Unbounded (b = ∞)", "Level 0 always, no blending: the paper's baseline"),
+               ("IMPORTANCE", "Importance", "From the low budget (importance 0) to b (importance 1), the "
+                "importance being the budget image's grey value or the importance of the object seen at the "
+                "pixel, the larger (Schwarz & Stamminger 2008, §4.2)"))
+BUDGET_MODE = {"UNIFORM": BUDGET_UNIFORM, "BORDER": BUDGET_BORDER, "UNBOUNDED": BUDGET_UNBOUNDED,
+               "IMPORTANCE": BUDGET_IMPORTANCE}
 PRIMITIVE = {"MICROPATCH": PRIMITIVE_MICROPATCH, "MICROQUAD": PRIMITIVE_MICROQUAD, "MICRORECT": PRIMITIVE_MICRORECT}
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
@@ -197,6 +202,11 @@ class Backprojection(Technique):
                "the 2008 paper)", items=BUDGET_MAPS),
         Option("bp_budget_border", 5, "Border budget", "Budget at the left/right image borders (border falloff)",
                min=2, max=64),
+        Option("bp_budget_low", 5, "Low budget", "Importance budget map: the budget where the importance is 0",
+               min=2, max=64),
+        Option("bp_budget_image", "", "Budget image", "Importance budget map: a Blender image (by name) or an "
+               "image file whose grey value (0 … 1, stretched over the frame) is each pixel's importance; "
+               "empty: only the objects' Shadow Importance"),
         Option("bp_blend", True, "Level blending", "Fractional level from area and budget, smoothed in an LOQ "
                "map (11×11 bilateral, stops at depth discontinuities), visibility of the two nearest levels "
                "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
@@ -279,6 +289,8 @@ class Backprojection(Technique):
             for i, (d, e) in enumerate(zip(rects.depth, rects.extent)):
                 samplers[f"u_mr_depth{i}"], samplers[f"u_mr_extent{i}"] = d, e
         budget_mode = BUDGET_MODE[o["bp_budget_map"]]
+        if budget_mode == BUDGET_IMPORTANCE:
+            samplers.update(self._importance_maps(frame, o["bp_budget_image"]))
         force = int(o["bp_force_level"])
         # Blending (2008 §4.2) needs a level that varies: not for an unbounded budget, a forced level or a
         # light without extent (a plain hard test).
@@ -290,6 +302,7 @@ class Backprojection(Technique):
         uniforms = {**lc.uniforms, **shape, "u_round": int(round_),
                     "u_delta": int(light.is_delta), "u_budget": float(o["bp_budget"]), "u_levels": int(levels),
                     "u_budget_border": float(o["bp_budget_border"]), "u_budget_mode": int(budget_mode),
+                    "u_budget_low": float(o["bp_budget_low"]),
                     "u_force_level": force, **ysm_uniforms,
                     "u_mssm_levels": int(n_mssm),
                     "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
@@ -325,7 +338,7 @@ class Backprojection(Technique):
                                  "level_change_max": float(np.abs(drop).max()) if bp.any() else 0.0})
         with frame.timings.stage("bp_gather"):
             budget_max = max(float(o["bp_budget"]), float(o["bp_budget_border"]) if budget_mode == BUDGET_BORDER
-                             else 0.0)
+                             else float(o["bp_budget_low"]) if budget_mode == BUDGET_IMPORTANCE else 0.0)
             worst = gather_cells_bound((w, h), len(maps), int(primitive == PRIMITIVE_MICROQUAD), budget_mode,
                                        force, budget_max, blend, levels)
             chunks = 1 if light.is_delta else -(-worst // CHUNK_CELLS)
@@ -355,6 +368,32 @@ class Backprojection(Technique):
         # Share of backprojecting pixels and micro-occluders per such pixel (costs a readback).
         if s.collect_stats or s.debug_passes:
             self._gather_debug(frame, lc, info, rgb_tex, out)
+
+    @staticmethod
+    def _importance_maps(frame, image_name: str) -> dict:
+        """The importance sources of the budget map (2008 §4.2), per pixel: the budget image's grey value
+        stretched over the frame, and the Shadow Importance of the object the camera sees (the receivers drawn
+        from the camera with their objects' values, nearest wins). Zero where a source is absent."""
+        size = (frame.width, frame.height)
+        image = frame.texture(size, 1)
+        if image_name:
+            grey = frame.snap.images.get(image_name)
+            if grey is None:            # not read by the extraction: a file path (CLI, scripts)
+                grey = importance.load_grey(image_name, "bp_budget_image")
+            image.write(np.ascontiguousarray(importance.resample(grey, size)).tobytes())
+        groups: dict[float, set] = {}
+        for i, ob in enumerate(frame.snap.objects):
+            groups.setdefault(float(ob.importance), set()).add(i)
+        if set(groups) <= {0.0}:
+            objects = frame.texture(size, 1)
+        else:
+            from ..gpu.programs import program
+            cam = frame.snap.camera
+            prog = program(frame.worker, "common/depth.vert", "backprojection/importance.frag")
+            objects = frame.rasterise(frame.target(size, 1), prog, cam.view, cam.projection @ cam.view,
+                                      role="receiver", clear=(0.0, 0.0, 0.0, 0.0),
+                                      draws=[(frozenset(ids), {"u_value": value}) for value, ids in groups.items()])
+        return {"u_importance_image": image, "u_importance_objects": objects}
 
     @staticmethod
     def _loq_map(frame, uniforms, samplers, images, defines, size):

@@ -63,7 +63,11 @@ uniform int u_round;            // disk / ellipse / sphere / sun: samples outsid
 uniform int u_delta;            // light without extent: plain hard shadow
 uniform float u_budget;         // b: at most b×b micro-occluders per layer (the budget map's centre value)
 uniform float u_budget_border;  // BUDGET_BORDER: b at the left and right image borders
-uniform int u_budget_mode;      // BUDGET_UNIFORM, BUDGET_BORDER or BUDGET_UNBOUNDED (b = ∞: level 0 always)
+uniform int u_budget_mode;      // BUDGET_UNIFORM, BUDGET_BORDER, BUDGET_UNBOUNDED (b = ∞: level 0 always) or
+                                // BUDGET_IMPORTANCE
+uniform float u_budget_low;     // BUDGET_IMPORTANCE: b where the importance is 0 (u_budget where it is 1)
+uniform sampler2D u_importance_image;    // BUDGET_IMPORTANCE: per pixel, the budget image's grey value…
+uniform sampler2D u_importance_objects;  // …and the importance of the object seen there
 uniform int u_force_level;      // ≥ 0: every pixel gathers at this level (the study's forced coarse levels)
 uniform int u_levels;           // hierarchy levels available (0 … u_levels−1)
 uniform vec2 u_jitter_x;        // bitmask sample x offset within its column, per row parity (§3)
@@ -497,9 +501,14 @@ Pixel make_pixel(ivec2 px) {
 }
 
 // ---- budget and level (Schwarz & Stamminger 2008, §4.2) ----------------------------------------------------
-// b_mo at this pixel: uniform, or falling linearly from the centre value to u_budget_border at the left and
-// right image borders (the paper's Fig. 1d).
+// b_mo at this pixel: uniform, falling linearly from the centre value to u_budget_border at the left and
+// right image borders (the paper's Fig. 1d), or from an importance source (an image, objects), the larger of
+// the two importances taking the budget from u_budget_low to u_budget.
 float pixel_budget(ivec2 px) {
+    if (u_budget_mode == BUDGET_IMPORTANCE) {
+        float w = max(texelFetch(u_importance_image, px, 0).r, texelFetch(u_importance_objects, px, 0).r);
+        return mix(u_budget_low, u_budget, clamp(w, 0.0, 1.0));
+    }
     if (u_budget_mode == BUDGET_BORDER) {
         float t = abs((float(px.x) + 0.5) / float(u_image_size.x) * 2.0 - 1.0);
         return mix(u_budget, u_budget_border, t);
