@@ -71,7 +71,7 @@ PRIMITIVE = {"MICROPATCH": PRIMITIVE_MICROPATCH, "MICROQUAD": PRIMITIVE_MICROQUA
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
 REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
-LOQ_DEPTH_JUMP = 0.05           # relative light-depth jump at which the LOQ smoothing stops (a discontinuity)
+LOQ_DEPTH_JUMP = 0.05           # relative camera-depth jump at which the LOQ smoothing stops (a discontinuity)
 
 # Mesa's llvmpipe ends a shader's loops once they have run 65535 iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS,
 # shared by every loop of an invocation): a gather over more micro-occluders stopped part-way, and every loop

@@ -105,7 +105,7 @@ uniform sampler2D u_loq;        // smoothed LOQ map: r = ℓ (negative: no backp
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 layout(rgba32f, binding = 1) uniform writeonly image2D u_info;      // class, level, count, A
 #if LOQ == LOQ_WRITE
-layout(rgba32f, binding = 3) uniform writeonly image2D u_loq_out;   // ℓ, map depth, ℓ, 0 (pass 1)
+layout(rgba32f, binding = 3) uniform writeonly image2D u_loq_out;   // ℓ, camera depth, ℓ, 0 (pass 1)
 #endif
 #if TEXTURED
 uniform sampler2D u_sample_color;   // BITS×BITS: rgb colour of each light sample, a its luminance
@@ -756,9 +756,11 @@ void main() {
         int cls = classify(p, budget, lo, hi);
 #if LOQ == LOQ_WRITE
         // Pass 1 (§4.2): the LOQ map — ℓ of backprojecting pixels, −1 elsewhere (the smoothing stops there),
-        // beside the map depth the smoothing compares.
+        // beside the camera depth (G-buffer) the smoothing compares: it stops at the image's depth edges, not
+        // at the light's (a silhouette over a far background can be at one light depth; a surface the light
+        // grazes changes light depth fast without any edge).
         float ell = cls == CLASS_BACKPROJECTED ? fractional_level(lo, hi, budget) : -1.0;
-        imageStore(u_loq_out, px, vec4(ell, p.d, ell, 0.0));
+        imageStore(u_loq_out, px, vec4(ell, texelFetch(g_normal, px, 0).w, ell, 0.0));
         return;
 #else
         if (cls == CLASS_UMBRA) {
