@@ -46,16 +46,26 @@ def load_grey(path: str, setting: str) -> np.ndarray:
         raise ValueError(f"Setting '{setting}': cannot read '{path}' as an image ({exc})") from None
 
 
+def bilinear(image: np.ndarray, x, y) -> np.ndarray:
+    """`image` (H, W, …) bilinearly sampled at texel coordinates x, y (arrays of one shape; texel centres at
+    whole numbers), clamped to the edge texels."""
+    h, w = image.shape[:2]
+    x, y = np.clip(x, 0.0, w - 1), np.clip(y, 0.0, h - 1)
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    extra = (1,) * (image.ndim - 2)
+    fx, fy = (x - x0).reshape(x.shape + extra), (y - y0).reshape(y.shape + extra)
+    top = image[y0, x0] * (1 - fx) + image[y0, x1] * fx
+    bottom = image[y1, x0] * (1 - fx) + image[y1, x1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
 def resample(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """Bilinear resampling of a (H, W) image to (height, width) = size[::-1], the image stretched over the
-    frame (pixel centres to pixel centres, edges clamped)."""
+    """A (H, W) image stretched over a frame of `size` = (width, height): (height, width), bilinear from
+    pixel centre to pixel centre."""
     h, w = image.shape
     width, height = size
-    y = np.clip((np.arange(height) + 0.5) * h / height - 0.5, 0.0, h - 1)
-    x = np.clip((np.arange(width) + 0.5) * w / width - 0.5, 0.0, w - 1)
-    y0, x0 = np.floor(y).astype(int), np.floor(x).astype(int)
-    y1, x1 = np.minimum(y0 + 1, h - 1), np.minimum(x0 + 1, w - 1)
-    fy, fx = (y - y0)[:, None], (x - x0)[None, :]
-    top = image[y0][:, x0] * (1 - fx) + image[y0][:, x1] * fx
-    bottom = image[y1][:, x0] * (1 - fx) + image[y1][:, x1] * fx
-    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+    x = (np.arange(width) + 0.5) * w / width - 0.5
+    y = (np.arange(height) + 0.5) * h / height - 0.5
+    xx, yy = np.meshgrid(x, y)
+    return bilinear(image, xx, yy).astype(np.float32)

@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import importance
-from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM, CLASS_BACKPROJECTED,
-                                     CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
+from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM,
+                                     CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
                                      REFINE_MSSM, REFINE_NONE, REFINE_YSM)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
@@ -133,14 +133,7 @@ def sample_colors(texture: np.ndarray, accumulation: str) -> np.ndarray:
     """(N, N, 3): the texture bilinearly sampled at each bitmask sample (§3.3)."""
     pos = sample_positions(accumulation)
     h, w = texture.shape[:2]
-    x = np.clip(pos[..., 0] * w - 0.5, 0, w - 1)
-    y = np.clip(pos[..., 1] * h - 0.5, 0, h - 1)
-    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    top = texture[y0, x0] * (1 - fx) + texture[y0, x1] * fx
-    bottom = texture[y1, x0] * (1 - fx) + texture[y1, x1] * fx
-    return top * (1 - fy) + bottom * fy
+    return importance.bilinear(texture, pos[..., 0] * w - 0.5, pos[..., 1] * h - 0.5)
 
 
 def luminance(rgb) -> np.ndarray:
