@@ -611,12 +611,14 @@ Occlusion no_occlusion() {
 // unrolls): a software GL that ends a shader's loops after a fixed number of iterations in all (llvmpipe:
 // 65535) then sees one iteration per micro-occluder, and CHUNKED can bound what one dispatch asks for.
 void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o) {
-    ivec2 first = (lo >> l) - QUAD_EXTRA;
-    ivec2 n = (hi >> l) - first + 1;
+    if (i1 <= i0) return;
+    ivec2 first = (lo >> l) - QUAD_EXTRA, last = hi >> l;
+    ivec2 n = last - first + 1;
     int per_layer = n.x * n.y;
+    // The first cell by division, the rest by stepping (integer division is slow on a CPU's vectors).
+    int layer = i0 / per_layer, j = i0 - layer * per_layer;
+    ivec2 c = first + ivec2(j % n.x, j / n.x);
     for (int i = i0; i < i1; ++i) {
-        int layer = i / per_layer, j = i - layer * per_layer;
-        ivec2 c = first + ivec2(j % n.x, j / n.x);
         vec2 a, b;
         float area;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
@@ -626,13 +628,21 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
 #else
         bool hit = microquad(p, layer, l, c, a, b, area);
 #endif
-        if (!hit) continue;
-        o.area += area;
+        if (hit) {
+            o.area += area;
 #if BITS > 0
-        Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
-        if (s.rows.x < s.rows.y)
-            for (int r = 0; r < BITS; ++r) o.bits[r] |= span_row(s, r);   // zero outside s.rows
+            Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
+            if (s.rows.x < s.rows.y)
+                for (int r = 0; r < BITS; ++r) o.bits[r] |= span_row(s, r);   // zero outside s.rows
 #endif
+        }
+        if (++c.x > last.x) {
+            c.x = first.x;
+            if (++c.y > last.y) {
+                c.y = first.y;
+                ++layer;
+            }
+        }
     }
 }
 
