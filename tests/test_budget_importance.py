@@ -90,3 +90,45 @@ def test_missing_budget_image_is_one_line_naming_the_setting(scene):
         pipeline.render(scene, settings(bp_budget_map="IMPORTANCE", bp_budget_image="no_such_mask"))
     message = str(err.value)
     assert "bp_budget_image" in message and "no_such_mask" in message and "\n" not in message
+
+
+def test_extraction_reads_object_importance_and_the_named_blender_image():
+    """Blender side: an object's Shadow Importance (or its custom property penumbra_importance, which wins)
+    reaches the snapshot's objects; the budget image named in the scene settings, or in RenderSettings given
+    to the extraction (the command line's --set), is read as a datablock's grey pixels."""
+    bpy = pytest.importorskip("bpy")
+    import penumbra
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.blender.settings_bridge import settings_from_scene
+    if not hasattr(bpy.types.Scene, "penumbra"):
+        penumbra.register()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    for name, value, custom in (("Ground", 0.75, None), ("Plate", 0.2, 1.0), ("Other", 0.0, None)):
+        mesh = bpy.data.meshes.new(name)
+        mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [(0, 1, 2)])
+        ob = bpy.data.objects.new(name, mesh)
+        sc.collection.objects.link(ob)
+        ob.penumbra.importance = value
+        if custom is not None:
+            ob["penumbra_importance"] = custom
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    image = bpy.data.images.new("Mask", 4, 2)
+    pixels = np.zeros((2, 4, 4), np.float32)
+    pixels[1, :, :3] = 1.0              # top row white (Blender's row 0 is the bottom)
+    image.pixels.foreach_set(pixels.ravel())
+    sc.penumbra.technique = "BACKPROJECTION"
+    sc.penumbra.bp_budget_map = "IMPORTANCE"
+    bpy.context.view_layer.update()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    snap = extract(depsgraph, sc, width=8, height=8)
+    assert {o.name: o.importance for o in snap.objects} == {"Ground": 0.75, "Plate": 1.0, "Other": 0.0}
+    assert snap.images == {}            # no image named
+    settings = settings_from_scene(sc).with_(bp_budget_image="Mask")
+    grey = extract(depsgraph, sc, width=8, height=8, settings=settings).images["Mask"]
+    assert np.array_equal(grey, [[0, 0, 0, 0], [1, 1, 1, 1]])
+    sc.penumbra.bp_budget_image = "Missing"
+    with pytest.raises(ValueError, match="bp_budget_image"):
+        extract(depsgraph, sc, width=8, height=8)

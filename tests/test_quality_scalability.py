@@ -285,7 +285,7 @@ NEW_SETTINGS = [{"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend"
                 {"bp_budget_map": "UNBOUNDED", "bp_primitive": "MICRORECT"}]
 
 
-@pytest.mark.slow                   # ~1 min per setting on llvmpipe, ~5 min with b = ∞
+@pytest.mark.slow                   # ~1 min per setting on llvmpipe, 2–5 min with b = ∞
 @pytest.mark.parametrize("overrides", NEW_SETTINGS, ids=["2008-all", "border-blend", "unbounded-microrects"])
 def test_stress_cases_pass_with_the_new_settings(overrides):
     cases = ["touch_plane", "near_light", "big_light", "tiny_light", "grazing", "scaled_small", "thin_bars",

@@ -649,13 +649,18 @@ def _importance(ob) -> float:
                          f"0 … 1, got {value!r}") from None
 
 
-def setting_images(scene) -> dict:
+def setting_images(scene, settings=None) -> dict:
     """The images settings name, read here where bpy is: BACKPROJECTION's importance image (bp_budget_image)
     when its budget map is IMPORTANCE, as a Blender image datablock's pixels or a blend-relative file. A
-    plain file path the technique reads itself; a name that is neither is an error naming the setting."""
-    props = getattr(scene, "penumbra", None)
-    name = str(getattr(props, "bp_budget_image", "") or "")
-    if not name or getattr(props, "bp_budget_map", "") != "IMPORTANCE":
+    plain file path the technique reads itself; a name that is neither is an error naming the setting.
+    `settings` (RenderSettings, e.g. with the command line's --set) stand in for scene.penumbra."""
+    if settings is not None:
+        name, mode = settings.option("bp_budget_image"), settings.option("bp_budget_map")
+    else:
+        props = getattr(scene, "penumbra", None)
+        name, mode = getattr(props, "bp_budget_image", ""), getattr(props, "bp_budget_map", "")
+    name = str(name or "")
+    if not name or mode != "IMPORTANCE":
         return {}
     import bpy
     from ..core import importance
@@ -672,9 +677,11 @@ def setting_images(scene) -> dict:
     return {name: importance.load_grey(path, "bp_budget_image")}
 
 
-def extract(depsgraph, scene=None, *, width: int | None = None, height: int | None = None) -> SceneSnapshot:
+def extract(depsgraph, scene=None, *, width: int | None = None, height: int | None = None,
+            settings=None) -> SceneSnapshot:
     """Snapshot of everything visible in `depsgraph` (render or viewport). `width`/`height` override the
-    camera resolution (otherwise render resolution × percentage)."""
+    camera resolution (otherwise render resolution × percentage); `settings`: the RenderSettings the frame
+    will use, for the images they name (else scene.penumbra's)."""
     if scene is None:
         scene = depsgraph.scene
     warnings: list[str] = []
@@ -744,7 +751,7 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
 
     # A scene without lights is not an error here; the pipeline warns (once) when it renders it.
     return SceneSnapshot(objects=objects, lights=lights, camera=camera, name=scene.name, warnings=warnings,
-                         textures=textures, images=setting_images(scene), **geometry)
+                         textures=textures, images=setting_images(scene, settings), **geometry)
 
 
 def object_info(ob, parent) -> tuple[str, bool, bool, str, float]:
