@@ -152,7 +152,7 @@ def cmd_render(args) -> int:
     from .blender.extract import extract
     t0 = time.perf_counter()
     try:
-        snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+        snap = extract(bpy.context.evaluated_depsgraph_get(), scene, settings=settings)
     except ValueError as exc:
         print(f"penumbra: {exc}", file=sys.stderr)
         return 2

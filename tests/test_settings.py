@@ -148,6 +148,9 @@ class _Layout:
         assert name in data.bl_rna.properties, name      # every drawn name is a real property
         self.drawn.append(name)
 
+    def prop_search(self, data, name, *_, **__):    # a text property with a datablock search (images)
+        self.prop(data, name)
+
     def column(self, **_):
         return self
 

@@ -36,7 +36,10 @@ class RENDER_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         if names:
             box = layout.column(heading=technique.label)
             for name in names:
-                box.prop(props, name)
+                if name == "bp_budget_image":   # a Blender image by name (or a file path typed in)
+                    box.prop_search(props, name, bpy.data, "images")
+                else:
+                    box.prop(props, name)
         layout.prop(props, "antialiasing")
         aa = layout.column(align=True)
         aa.active = props.antialiasing
@@ -165,6 +168,10 @@ class OBJECT_PT_penumbra(PenumbraPanel, bpy.types.Panel):
         layout.use_property_split = True
         obj = context.object
         layout.prop(obj.penumbra, "role")
+        if context.scene.penumbra.technique == "BACKPROJECTION":
+            row = layout.row()
+            row.active = context.scene.penumbra.bp_budget_map == "IMPORTANCE"
+            row.prop(obj.penumbra, "importance")
         if context.scene.penumbra.technique == "SSM":
             col = layout.column(align=True)
             col.label(text="Soft Shadow Maps: casters shadow receivers;", icon="INFO")

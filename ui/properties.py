@@ -55,6 +55,8 @@ def _option_property(opt):
         return EnumProperty(items=[tuple(i) for i in opt.items], default=opt.default, **common)
     if isinstance(opt.default, bool):
         return BoolProperty(default=opt.default, **common)
+    if isinstance(opt.default, str):
+        return StringProperty(default=opt.default, **common)
     bounds = {k: v for k, v in (("min", opt.min), ("max", opt.max), ("soft_min", opt.soft_min),
                                 ("soft_max", opt.soft_max)) if v is not None}
     if isinstance(opt.default, int):
@@ -72,6 +74,10 @@ class PenumbraObjectSettings(bpy.types.PropertyGroup):
         ("CASTER", "Caster", "Only casts shadows (for techniques that split casters from receivers)"),
         ("RECEIVER", "Receiver", "Only receives shadows (for techniques that split casters from receivers)"),
     ])
+    importance: FloatProperty(name="Shadow Importance", default=0.0, min=0.0, max=1.0, subtype="FACTOR",
+                              description="BACKPROJECTION with the Importance budget map: the budget on this "
+                                          "object's pixels, from the low budget (0) to the budget (1); a custom "
+                                          "property 'penumbra_importance' overrides it")
 
 
 class PenumbraCompareSettings(bpy.types.PropertyGroup):

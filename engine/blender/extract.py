@@ -667,9 +667,55 @@ def _role(ob) -> str:
     return str(getattr(props, "role", "BOTH")) if props is not None else "BOTH"
 
 
-def extract(depsgraph, scene=None, *, width: int | None = None, height: int | None = None) -> SceneSnapshot:
+def _importance(ob) -> float:
+    """Budget importance 0 … 1 (BACKPROJECTION's importance budget map): the custom property
+    `penumbra_importance` where the object has one (scripts, linked data), else its Penumbra setting. Read
+    from the original object: the depsgraph's evaluated copies answer 0 for both."""
+    ob = getattr(ob, "original", None) or ob
+    value = ob.get("penumbra_importance") if hasattr(ob, "get") else None
+    if value is None:
+        props = getattr(ob, "penumbra", None)
+        value = getattr(props, "importance", 0.0) if props is not None else 0.0
+    try:
+        return min(max(float(value), 0.0), 1.0)
+    except (TypeError, ValueError):
+        raise ValueError(f"Object '{ob.name}': custom property 'penumbra_importance' must be a number "
+                         f"0 … 1, got {value!r}") from None
+
+
+def setting_images(scene, settings=None) -> dict:
+    """The images settings name, read here where bpy is: BACKPROJECTION's importance image (bp_budget_image)
+    when its budget map is IMPORTANCE, as a Blender image datablock's pixels or a blend-relative file. A
+    plain file path the technique reads itself; a name that is neither is an error naming the setting.
+    `settings` (RenderSettings, e.g. with the command line's --set) stand in for scene.penumbra."""
+    if settings is not None:
+        name, mode = settings.option("bp_budget_image"), settings.option("bp_budget_map")
+    else:
+        props = getattr(scene, "penumbra", None)
+        name, mode = getattr(props, "bp_budget_image", ""), getattr(props, "bp_budget_map", "")
+    name = str(name or "")
+    if not name or mode != "IMPORTANCE":
+        return {}
+    import bpy
+    from ..core import importance
+    image = bpy.data.images.get(name)
+    if image is not None:
+        w, h = image.size
+        channels = image.channels
+        if w == 0 or h == 0:
+            raise ValueError(f"Setting 'bp_budget_image': image '{name}' has no pixels (not loaded or empty)")
+        pixels = np.empty(w * h * channels, np.float32)
+        image.pixels.foreach_get(pixels)
+        return {name: importance.grey(pixels.reshape(h, w, channels))}
+    path = bpy.path.abspath(name)
+    return {name: importance.load_grey(path, "bp_budget_image")}
+
+
+def extract(depsgraph, scene=None, *, width: int | None = None, height: int | None = None,
+            settings=None) -> SceneSnapshot:
     """Snapshot of everything visible in `depsgraph` (render or viewport). `width`/`height` override the
-    camera resolution (otherwise render resolution × percentage)."""
+    camera resolution (otherwise render resolution × percentage); `settings`: the RenderSettings the frame
+    will use, for the images they name (else scene.penumbra's)."""
     if scene is None:
         scene = depsgraph.scene
     warnings: list[str] = []
@@ -739,33 +785,36 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
 
     # A scene without lights is not an error here; the pipeline warns (once) when it renders it.
     return SceneSnapshot(objects=objects, lights=lights, camera=camera, name=scene.name, warnings=warnings,
-                         textures=textures, **geometry)
+                         textures=textures, images=setting_images(scene, settings), **geometry)
 
 
-def object_info(ob, parent) -> tuple[str, bool, bool, str]:
-    """(name, caster, receiver, role) of a mesh object as one instance sees it, `parent` its instancer (None
-    when not instanced): what the final render and the viewport both read. Cycles ANDs the instancer's ray
-    visibility into the instance's; an instance whose own Shadow Role is Both takes its instancer's."""
+def object_info(ob, parent) -> tuple[str, bool, bool, str, float, float]:
+    """(name, caster, receiver, role, importance, terminator offset) of a mesh object as one instance sees it
+    (ObjectInfo's fields, in order), `parent` its
+    instancer (None when not instanced): what the final render and the viewport both read. Cycles ANDs the
+    instancer's ray visibility into the instance's; an instance whose own Shadow Role is Both takes its
+    instancer's, one without importance its instancer's."""
     caster = bool(ob.visible_shadow)
     receiver = bool(ob.visible_camera)
     role = _role(ob)
+    importance = _importance(ob)
     if parent is not None and parent != ob:
         caster = caster and bool(parent.visible_shadow)
         receiver = receiver and bool(parent.visible_camera)
         if role == "BOTH":
             role = _role(parent)
-    return ob.name, caster, receiver, role
+        if importance == 0.0:
+            importance = _importance(parent)
+    return ob.name, caster, receiver, role, importance, float(getattr(ob, "shadow_terminator_geometry_offset", 0.1))
 
 
 def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, material_cache, table_cache,
                   warn_once) -> tuple[int, int]:
-    _, caster, receiver, role = object_info(ob, parent)
-    okey = (ob.name, caster, receiver, role)
+    okey = object_info(ob, parent)
     oid = object_index.get(okey)
     if oid is None:
         oid = object_index[okey] = len(objects)
-        objects.append(ObjectInfo(name=ob.name, caster=caster, receiver=receiver, role=role,
-                                  terminator_offset=float(getattr(ob, "shadow_terminator_geometry_offset", 0.1))))
+        objects.append(ObjectInfo(*okey))
 
     mats = [slot.material for slot in ob.material_slots]
     if not mats:

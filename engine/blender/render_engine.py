@@ -46,7 +46,7 @@ class PenumbraRenderEngine(bpy.types.RenderEngine):
         self.update_stats("", "Penumbra: reading scene")
         try:
             settings.validate()
-            snap = extract(depsgraph, scene)
+            snap = extract(depsgraph, scene, settings=settings)
         except ValueError as exc:           # bad input: a message naming the scene/object/setting
             self._fail(str(exc))
             return

@@ -74,7 +74,7 @@ class ViewportScene:
             changed.add(key)
         self.version += 1
         state = SceneState(dict(self.pieces), instances, objects, lights, warnings, depsgraph.scene.name,
-                           self.version)
+                           self.version, extraction.setting_images(depsgraph.scene))
         return state, changed
 
 

@@ -15,7 +15,7 @@ class Option:
     """A setting a technique declares: becomes a scene.penumbra property, a `--set` name on the command line
     and a RenderSettings.option() value. Prefix names with the technique (e.g. `bp_budget`)."""
     name: str
-    default: Any                        # bool, int, float, or str for an enum
+    default: Any                        # bool, int, float, or str (an enum with `items`, else free text)
     label: str
     description: str = ""
     min: float | None = None
@@ -30,6 +30,8 @@ class Option:
             return "one of " + ", ".join(i[0] for i in self.items)
         if isinstance(self.default, bool):
             return "true/false"
+        if isinstance(self.default, str):
+            return "any text"
         return range_text(self.min, self.max)
 
     def check(self, value) -> None:
@@ -42,6 +44,10 @@ class Option:
         if isinstance(self.default, bool):
             if not isinstance(value, (bool, int)):
                 raise ValueError(f"Setting '{self.name}' expects true/false, got {value!r}")
+            return
+        if isinstance(self.default, str):
+            if not isinstance(value, str):
+                raise ValueError(f"Setting '{self.name}' expects text, got {value!r}")
             return
         if (self.min is not None and value < self.min) or (self.max is not None and value > self.max):
             raise ValueError(f"Setting '{self.name}' = {value} is out of range ({self.allowed()})")

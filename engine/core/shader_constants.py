@@ -17,7 +17,7 @@ REFINE_NONE, REFINE_HSM, REFINE_MSSM, REFINE_YSM = 0, 1, 2, 3
 PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT = 0, 1, 2
 # BACKPROJECTION's budget map b_mo(x, y) (Schwarz & Stamminger 2008, §4.2; u_budget_mode) and level passes
 # (the LOQ define: 0 one integer level per pixel, 1 write the fractional level, 3 blend the two levels).
-BUDGET_UNIFORM, BUDGET_BORDER, BUDGET_UNBOUNDED = 0, 1, 2
+BUDGET_UNIFORM, BUDGET_BORDER, BUDGET_UNBOUNDED, BUDGET_IMPORTANCE = 0, 1, 2, 3
 LOQ_INTEGER, LOQ_WRITE, LOQ_BLEND = 0, 1, 3
 
 # REFERENCE's sample weights (u_weight_mode).

@@ -94,6 +94,7 @@ class ObjectInfo:
     caster: bool = True             # appears in shadow maps (Blender: visible_shadow)
     receiver: bool = True           # appears in the camera view (Blender: visible_camera)
     role: str = "BOTH"              # Penumbra object role for techniques that split casters/receivers
+    importance: float = 0.0         # 0 … 1: BACKPROJECTION's importance budget map raises the budget on its pixels
     terminator_offset: float = 0.1  # Blender's Shadow Terminator Geometry Offset (Cycles' smooth-surface lift)
 
 
@@ -137,6 +138,9 @@ class SceneSnapshot:
     texture_id: np.ndarray | None = None
     corner_color: np.ndarray | None = None
     textures: list[AlbedoTexture] = field(default_factory=list)
+    # Images a setting names (a Blender image datablock, a blend-relative path), read by the extraction:
+    # the setting's text → (H, W) float32 grey (core/importance.py), row 0 at the bottom.
+    images: dict = field(default_factory=dict)
 
     @property
     def triangle_count(self) -> int:

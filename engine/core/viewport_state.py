@@ -43,3 +43,4 @@ class SceneState:
     warnings: list
     name: str
     version: int
+    images: dict = field(default_factory=dict)     # SceneSnapshot.images

@@ -218,7 +218,7 @@ class ViewportSession:
             return None
         snap = SceneSnapshot(objects=self.state.objects, lights=self.state.lights, camera=camera,
                              name=self.state.name, warnings=list(self.state.warnings),
-                             **SceneSnapshot.empty_geometry())
+                             images=self.state.images, **SceneSnapshot.empty_geometry())
         start = time.perf_counter()
         try:
             result = pipeline.render_job(worker, job, snap, settings, geometry=self._geometry)

@@ -28,8 +28,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.shader_constants import (BUDGET_BORDER, BUDGET_UNBOUNDED, BUDGET_UNIFORM, CLASS_BACKPROJECTED,
-                                     CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
+from ..core import importance
+from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM,
+                                     CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
                                      REFINE_MSSM, REFINE_NONE, REFINE_YSM)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
@@ -60,13 +61,24 @@ REFINEMENTS = (("NONE", "None", "Search the whole pyramid ∩ near plane; no lit
 BUDGET_MAPS = (("UNIFORM", "Uniform", "The same budget b at every pixel"),
                ("BORDER", "Border falloff", "b at the image centre falling linearly to the border budget at the "
                 "left and right borders (Schwarz & Stamminger 2008, Fig. 1d)"),
-               ("UNBOUNDED", "Unbounded (b = ∞)", "Level 0 always, no blending: the paper's baseline"))
-BUDGET_MODE = {"UNIFORM": BUDGET_UNIFORM, "BORDER": BUDGET_BORDER, "UNBOUNDED": BUDGET_UNBOUNDED}
+               ("UNBOUNDED", "Unbounded (b = ∞)", "Level 0 always, no blending: the paper's baseline"),
+               ("IMPORTANCE", "Importance", "From the low budget (importance 0) to b (importance 1), the "
+                "importance being the budget image's grey value or the importance of the object seen at the "
+                "pixel, the larger (Schwarz & Stamminger 2008, §4.2)"))
+BUDGET_MODE = {"UNIFORM": BUDGET_UNIFORM, "BORDER": BUDGET_BORDER, "UNBOUNDED": BUDGET_UNBOUNDED,
+               "IMPORTANCE": BUDGET_IMPORTANCE}
 PRIMITIVE = {"MICROPATCH": PRIMITIVE_MICROPATCH, "MICROQUAD": PRIMITIVE_MICROQUAD, "MICRORECT": PRIMITIVE_MICRORECT}
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
 REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
-LOQ_DEPTH_JUMP = 0.05           # relative light-depth jump at which the LOQ smoothing stops (a discontinuity)
+LOQ_DEPTH_JUMP = 0.05           # relative camera-depth jump at which the LOQ smoothing stops (a discontinuity)
+
+# Mesa's llvmpipe ends a shader's loops once they have run 65535 iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS,
+# shared by every loop of an invocation): a gather over more micro-occluders stopped part-way, and every loop
+# after it ran once (the bitmask count saw one row: black). That was b = ∞ on big_light (~573k per pixel). One
+# dispatch gathers at most CHUNK_CELLS per pixel; a SIMD group may run two gathers' shares back to back
+# (blending), so twice this plus the classification's and resolve's short loops stays below the limit.
+CHUNK_CELLS = 16384
 
 
 def sample_pattern(accumulation: str) -> tuple[int, tuple, tuple]:
@@ -121,18 +133,32 @@ def sample_colors(texture: np.ndarray, accumulation: str) -> np.ndarray:
     """(N, N, 3): the texture bilinearly sampled at each bitmask sample (§3.3)."""
     pos = sample_positions(accumulation)
     h, w = texture.shape[:2]
-    x = np.clip(pos[..., 0] * w - 0.5, 0, w - 1)
-    y = np.clip(pos[..., 1] * h - 0.5, 0, h - 1)
-    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-    top = texture[y0, x0] * (1 - fx) + texture[y0, x1] * fx
-    bottom = texture[y1, x0] * (1 - fx) + texture[y1, x1] * fx
-    return top * (1 - fy) + bottom * fy
+    return importance.bilinear(texture, pos[..., 0] * w - 0.5, pos[..., 1] * h - 0.5)
 
 
 def luminance(rgb) -> np.ndarray:
     return np.asarray(rgb, np.float64) @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def gather_cells_bound(map_size, layers: int, quad_extra: int, budget_mode: int, force_level: int,
+                       budget_max: float, blend: bool, levels: int) -> int:
+    """Most micro-occluders one pixel's gathers can visit (visibility.comp gather_cells, all layers, both
+    levels when blending): the search area is clamped to the map, and a budget b keeps the integer level's
+    area within b cells per side; a blended ⌊ℓ⌋ may be up to two levels finer than that (the smoothed ℓ falls
+    at most one below the pixel's own), ⌈ℓ⌉ one."""
+    def cells(level, per_side=None):
+        n = [((s - 1) >> level) + 1 + quad_extra for s in map_size]
+        if per_side is not None:
+            n = [min(v, per_side) for v in n]
+        return n[0] * n[1]
+    if force_level >= 0:
+        return layers * cells(min(force_level, levels - 1))
+    if budget_mode == BUDGET_UNBOUNDED:
+        return layers * cells(0)
+    b = int(np.ceil(budget_max))
+    if not blend:
+        return layers * cells(0, b)
+    return layers * (cells(0, 4 * b + 2 + quad_extra) + cells(min(1, levels - 1), 2 * b + 2 + quad_extra))
 
 
 def _mask_rows(valid: np.ndarray) -> list[int]:
@@ -169,6 +195,11 @@ class Backprojection(Technique):
                "the 2008 paper)", items=BUDGET_MAPS),
         Option("bp_budget_border", 5, "Border budget", "Budget at the left/right image borders (border falloff)",
                min=2, max=64),
+        Option("bp_budget_low", 5, "Low budget", "Importance budget map: the budget where the importance is 0",
+               min=2, max=64),
+        Option("bp_budget_image", "", "Budget image", "Importance budget map: a Blender image (by name) or an "
+               "image file whose grey value (0 … 1, stretched over the frame) is each pixel's importance; "
+               "empty: only the objects' Shadow Importance"),
         Option("bp_blend", True, "Level blending", "Fractional level from area and budget, smoothed in an LOQ "
                "map (11×11 bilateral, stops at depth discontinuities), visibility of the two nearest levels "
                "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
@@ -251,6 +282,8 @@ class Backprojection(Technique):
             for i, (d, e) in enumerate(zip(rects.depth, rects.extent)):
                 samplers[f"u_mr_depth{i}"], samplers[f"u_mr_extent{i}"] = d, e
         budget_mode = BUDGET_MODE[o["bp_budget_map"]]
+        if budget_mode == BUDGET_IMPORTANCE:
+            samplers.update(self._importance_maps(frame, o["bp_budget_image"]))
         force = int(o["bp_force_level"])
         # Blending (2008 §4.2) needs a level that varies: not for an unbounded budget, a forced level or a
         # light without extent (a plain hard test).
@@ -262,6 +295,7 @@ class Backprojection(Technique):
         uniforms = {**lc.uniforms, **shape, "u_round": int(round_),
                     "u_delta": int(light.is_delta), "u_budget": float(o["bp_budget"]), "u_levels": int(levels),
                     "u_budget_border": float(o["bp_budget_border"]), "u_budget_mode": int(budget_mode),
+                    "u_budget_low": float(o["bp_budget_low"]),
                     "u_force_level": force, **ysm_uniforms,
                     "u_mssm_levels": int(n_mssm),
                     "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
@@ -296,8 +330,24 @@ class Backprojection(Technique):
                 lc.stats.update({"level_drop_max": float(drop.max()) if bp.any() else 0.0,
                                  "level_change_max": float(np.abs(drop).max()) if bp.any() else 0.0})
         with frame.timings.stage("bp_gather"):
-            frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
-                           defines=defines)
+            budget_max = max(float(o["bp_budget"]), float(o["bp_budget_border"]) if budget_mode == BUDGET_BORDER
+                             else float(o["bp_budget_low"]) if budget_mode == BUDGET_IMPORTANCE else 0.0)
+            worst = gather_cells_bound((w, h), len(maps), int(primitive == PRIMITIVE_MICROQUAD), budget_mode,
+                                       force, budget_max, blend, levels)
+            chunks = 1 if light.is_delta else -(-worst // CHUNK_CELLS)
+            if chunks == 1:
+                frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
+                               defines=defines)
+            else:
+                slots = 2 if blend else 1
+                state = frame.reserved_buffer(size[0] * size[1] * slots * (bits + 1) * 4)
+                for k in range(chunks):
+                    frame.progress.check()
+                    frame.dispatch("backprojection/visibility.comp",
+                                   {**uniforms, "u_chunk": k, "u_chunks": chunks, "u_chunk_cells": CHUNK_CELLS},
+                                   samplers=samplers, images=images, defines={**defines, "CHUNKED": 1},
+                                   buffers={4: state})
+            lc.stats["gather_dispatches"] = chunks
         if filter_passes:
             with frame.timings.stage("bp_filter"):
                 tmp = frame.texture(size, 1)
@@ -311,6 +361,32 @@ class Backprojection(Technique):
         # Share of backprojecting pixels and micro-occluders per such pixel (costs a readback).
         if s.collect_stats or s.debug_passes:
             self._gather_debug(frame, lc, info, rgb_tex, out)
+
+    @staticmethod
+    def _importance_maps(frame, image_name: str) -> dict:
+        """The importance sources of the budget map (2008 §4.2), per pixel: the budget image's grey value
+        stretched over the frame, and the Shadow Importance of the object the camera sees (the receivers drawn
+        from the camera with their objects' values, nearest wins). Zero where a source is absent."""
+        size = (frame.width, frame.height)
+        image = frame.texture(size, 1)
+        if image_name:
+            grey = frame.snap.images.get(image_name)
+            if grey is None:            # not read by the extraction: a file path (CLI, scripts)
+                grey = importance.load_grey(image_name, "bp_budget_image")
+            image.write(np.ascontiguousarray(importance.resample(grey, size)).tobytes())
+        groups: dict[float, set] = {}
+        for i, ob in enumerate(frame.snap.objects):
+            groups.setdefault(float(ob.importance), set()).add(i)
+        if set(groups) <= {0.0}:
+            objects = frame.texture(size, 1)
+        else:
+            from ..gpu.programs import program
+            cam = frame.snap.camera
+            prog = program(frame.worker, "common/depth.vert", "backprojection/importance.frag")
+            objects = frame.rasterise(frame.target(size, 1), prog, cam.view, cam.projection @ cam.view,
+                                      role="receiver", clear=(0.0, 0.0, 0.0, 0.0),
+                                      draws=[(frozenset(ids), {"u_value": value}) for value, ids in groups.items()])
+        return {"u_importance_image": image, "u_importance_objects": objects}
 
     @staticmethod
     def _loq_map(frame, uniforms, samplers, images, defines, size):

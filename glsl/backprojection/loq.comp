@@ -1,10 +1,11 @@
 // LOQ map smoothing (Schwarz & Stamminger 2008, §4.2, pass 2): one direction of a separable 11×11 bilateral
 // filter of the fractional level ℓ. From the centre the kernel walks outwards and stops at the first pixel
-// that needs no backprojection (ℓ < 0) or lies across a depth discontinuity (relative map-depth jump above
-// u_depth_jump), so levels never leak between surfaces or into lit/umbra regions. The second (vertical)
+// that needs no backprojection (ℓ < 0) or lies across a depth discontinuity of the camera's view (relative
+// camera-depth jump above u_depth_jump: the screen-space edges the paper's bilateral filter respects), so
+// levels never leak between surfaces or into lit/umbra regions. The second (vertical)
 // pass applies the budget guard: the smoothed ℓ never falls more than one level below the pixel's own.
 layout(local_size_x = 8, local_size_y = 8) in;
-uniform sampler2D u_src;        // r: ℓ (current), g: map depth, b: the pixel's own ℓ (pass 1)
+uniform sampler2D u_src;        // r: ℓ (current), g: camera depth, b: the pixel's own ℓ (pass 1)
 uniform ivec2 u_image_size;
 uniform ivec2 u_dir;            // (1, 0) or (0, 1)
 uniform int u_guard;            // 1: last pass, apply the guard

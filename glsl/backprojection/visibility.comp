@@ -55,12 +55,19 @@
 #ifndef GROW
 #define GROW 0
 #endif
+#ifndef CHUNKED
+#define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
+#endif
 
 uniform int u_round;            // disk / ellipse / sphere / sun: samples outside the ellipse never count
 uniform int u_delta;            // light without extent: plain hard shadow
 uniform float u_budget;         // b: at most b×b micro-occluders per layer (the budget map's centre value)
 uniform float u_budget_border;  // BUDGET_BORDER: b at the left and right image borders
-uniform int u_budget_mode;      // BUDGET_UNIFORM, BUDGET_BORDER or BUDGET_UNBOUNDED (b = ∞: level 0 always)
+uniform int u_budget_mode;      // BUDGET_UNIFORM, BUDGET_BORDER, BUDGET_UNBOUNDED (b = ∞: level 0 always) or
+                                // BUDGET_IMPORTANCE
+uniform float u_budget_low;     // BUDGET_IMPORTANCE: b where the importance is 0 (u_budget where it is 1)
+uniform sampler2D u_importance_image;    // BUDGET_IMPORTANCE: per pixel, the budget image's grey value…
+uniform sampler2D u_importance_objects;  // …and the importance of the object seen there
 uniform int u_force_level;      // ≥ 0: every pixel gathers at this level (the study's forced coarse levels)
 uniform int u_levels;           // hierarchy levels available (0 … u_levels−1)
 uniform vec2 u_jitter_x;        // bitmask sample x offset within its column, per row parity (§3)
@@ -98,7 +105,7 @@ uniform sampler2D u_loq;        // smoothed LOQ map: r = ℓ (negative: no backp
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 layout(rgba32f, binding = 1) uniform writeonly image2D u_info;      // class, level, count, A
 #if LOQ == LOQ_WRITE
-layout(rgba32f, binding = 3) uniform writeonly image2D u_loq_out;   // ℓ, map depth, ℓ, 0 (pass 1)
+layout(rgba32f, binding = 3) uniform writeonly image2D u_loq_out;   // ℓ, camera depth, ℓ, 0 (pass 1)
 #endif
 #if TEXTURED
 uniform sampler2D u_sample_color;   // BITS×BITS: rgb colour of each light sample, a its luminance
@@ -117,6 +124,7 @@ struct Pixel {
     vec2 tp;
     vec2 tex;
     vec3 shading;       // shading normal in the view's frame (the sample weights' horizon)
+    ivec2 px;           // its image pixel
 };
 
 // Occlusion gathered so far: the N×N bitmask of light samples hidden (§3) and the summed occluded fraction
@@ -488,13 +496,19 @@ Pixel make_pixel(ivec2 px) {
     p.tex = (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
     p.tp = window_coords(p.r.local);
     p.shading = view_direction(texelFetch(g_normal, px, 0).xyz);
+    p.px = px;
     return p;
 }
 
 // ---- budget and level (Schwarz & Stamminger 2008, §4.2) ----------------------------------------------------
-// b_mo at this pixel: uniform, or falling linearly from the centre value to u_budget_border at the left and
-// right image borders (the paper's Fig. 1d).
+// b_mo at this pixel: uniform, falling linearly from the centre value to u_budget_border at the left and
+// right image borders (the paper's Fig. 1d), or from an importance source (an image, objects), the larger of
+// the two importances taking the budget from u_budget_low to u_budget.
 float pixel_budget(ivec2 px) {
+    if (u_budget_mode == BUDGET_IMPORTANCE) {
+        float w = max(texelFetch(u_importance_image, px, 0).r, texelFetch(u_importance_objects, px, 0).r);
+        return mix(u_budget_low, u_budget, clamp(w, 0.0, 1.0));
+    }
     if (u_budget_mode == BUDGET_BORDER) {
         float t = abs((float(px.x) + 0.5) / float(u_image_size.x) * 2.0 - 1.0);
         return mix(u_budget, u_budget_border, t);
@@ -576,39 +590,112 @@ int classify(Pixel p, float budget, out ivec2 lo, out ivec2 hi) {
     return state;
 }
 
-// Gather (§4, §5): every micro-occluder of every layer over [lo, hi] on the grid of level l; adds the
-// micro-occluders processed to `count`.
-Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, int l, inout float count) {
-    ivec2 c0 = lo >> l, c1 = hi >> l;
+// Micro-occluders a level-l gather over [lo, hi] visits, all layers: micropatches and microrects the area's
+// cells, microquads the quads between the centres of its cells and their neighbours (one more per side).
+int gather_cells(ivec2 lo, ivec2 hi, int l) {
+    ivec2 n = (hi >> l) - (lo >> l) + 1 + QUAD_EXTRA;
+    return n.x * n.y * LAYERS;
+}
+
+Occlusion no_occlusion() {
     Occlusion o;
     o.area = 0.0;
 #if BITS > 0
     for (int i = 0; i < BITS; ++i) o.bits[i] = 0u;
 #endif
-    // Micropatches and microrects: the area's cells; microquads: the quads between the centres of its
-    // cells and their neighbours (one more per side).
-    ivec2 first = c0 - QUAD_EXTRA;
-    for (int layer = 0; layer < LAYERS; ++layer) {
-        for (int y = first.y; y <= c1.y; ++y)
-            for (int x = first.x; x <= c1.x; ++x) {
-                vec2 a, b;
-                float area;
+    return o;
+}
+
+// Add micro-occluders [i0, i1) of the level-l gather over [lo, hi] (numbered layer by layer, row by row) to
+// `o`. One loop over a flat index, and the bitmask rows in a loop of constant length (which the compiler
+// unrolls): a software GL that ends a shader's loops after a fixed number of iterations in all (llvmpipe:
+// 65535) then sees one iteration per micro-occluder, and CHUNKED can bound what one dispatch asks for.
+void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o) {
+    if (i1 <= i0) return;
+    ivec2 first = (lo >> l) - QUAD_EXTRA, last = hi >> l;
+    ivec2 n = last - first + 1;
+    int per_layer = n.x * n.y;
+    // The first cell by division, the rest by stepping (integer division is slow on a CPU's vectors).
+    int layer = i0 / per_layer, j = i0 - layer * per_layer;
+    ivec2 c = first + ivec2(j % n.x, j / n.x);
+    for (int i = i0; i < i1; ++i) {
+        vec2 a, b;
+        float area;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
-                bool hit = micropatch(p, layer, l, ivec2(x, y), a, b, area);
+        bool hit = micropatch(p, layer, l, c, a, b, area);
 #elif PRIMITIVE == PRIMITIVE_MICRORECT
-                bool hit = microrect(p, layer, l, ivec2(x, y), a, b, area);
+        bool hit = microrect(p, layer, l, c, a, b, area);
 #else
-                bool hit = microquad(p, layer, l, ivec2(x, y), a, b, area);
+        bool hit = microquad(p, layer, l, c, a, b, area);
 #endif
-                if (!hit) continue;
-                o.area += area;
+        if (hit) {
+            o.area += area;
 #if BITS > 0
-                Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
-                for (int r = s.rows.x; r < s.rows.y; ++r) o.bits[r] |= span_row(s, r);
+            Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
+            if (s.rows.x < s.rows.y)
+                for (int r = 0; r < BITS; ++r) o.bits[r] |= span_row(s, r);   // zero outside s.rows
 #endif
+        }
+        if (++c.x > last.x) {
+            c.x = first.x;
+            if (++c.y > last.y) {
+                c.y = first.y;
+                ++layer;
             }
-        count += float((c1.x - first.x + 1) * (c1.y - first.y + 1));
+        }
     }
+}
+
+#if CHUNKED
+// A pixel's gathers (one level, or ⌊ℓ⌋ then ⌈ℓ⌉ when blending) split over u_chunks dispatches of at most
+// u_chunk_cells micro-occluders each (the loop limit above); between them the occlusion of each gather
+// ("slot") waits in u_state: BITS words of bitmask, then the area's bits.
+layout(std430, binding = 4) buffer State { uint u_state[]; };
+uniform int u_chunk;            // this dispatch, 0 … u_chunks − 1
+uniform int u_chunks;
+uniform int u_chunk_cells;
+const int SLOTS = LOQ == LOQ_BLEND ? 2 : 1;
+
+int state_base(ivec2 px, int slot) {
+    return ((px.y * u_image_size.x + px.x) * SLOTS + slot) * (BITS + 1);
+}
+
+Occlusion load_state(ivec2 px, int slot) {
+    Occlusion o = no_occlusion();
+    if (u_chunk == 0) return o;
+    int base = state_base(px, slot);
+#if BITS > 0
+    for (int i = 0; i < BITS; ++i) o.bits[i] = u_state[base + i];
+#endif
+    o.area = uintBitsToFloat(u_state[base + BITS]);
+    return o;
+}
+
+void store_state(ivec2 px, int slot, Occlusion o) {
+    int base = state_base(px, slot);
+#if BITS > 0
+    for (int i = 0; i < BITS; ++i) u_state[base + i] = o.bits[i];
+#endif
+    u_state[base + BITS] = floatBitsToUint(o.area);
+}
+#endif
+
+// Gather (§4, §5): every micro-occluder of every layer over [lo, hi] on the grid of level l, into gather
+// `slot` of the pixel; adds the micro-occluders to `count`. CHUNKED: only this dispatch's share of them,
+// `start` being where this gather begins in the pixel's list (advanced past it).
+Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, int l, inout float count, int slot, inout int start) {
+    int n = gather_cells(lo, hi, l);
+    count += float(n);
+#if CHUNKED
+    Occlusion o = load_state(p.px, slot);
+    int w0 = u_chunk * u_chunk_cells - start;
+    gather_range(p, lo, hi, l, clamp(w0, 0, n), clamp(w0 + u_chunk_cells, 0, n), o);
+    store_state(p.px, slot, o);
+#else
+    Occlusion o = no_occlusion();
+    gather_range(p, lo, hi, l, 0, n, o);
+#endif
+    start += n;
     return o;
 }
 
@@ -679,9 +766,11 @@ void main() {
         int cls = classify(p, budget, lo, hi);
 #if LOQ == LOQ_WRITE
         // Pass 1 (§4.2): the LOQ map — ℓ of backprojecting pixels, −1 elsewhere (the smoothing stops there),
-        // beside the map depth the smoothing compares.
+        // beside the camera depth (G-buffer) the smoothing compares: it stops at the image's depth edges, not
+        // at the light's (a silhouette over a far background can be at one light depth; a surface the light
+        // grazes changes light depth fast without any edge).
         float ell = cls == CLASS_BACKPROJECTED ? fractional_level(lo, hi, budget) : -1.0;
-        imageStore(u_loq_out, px, vec4(ell, p.d, ell, 0.0));
+        imageStore(u_loq_out, px, vec4(ell, texelFetch(g_normal, px, 0).w, ell, 0.0));
         return;
 #else
         if (cls == CLASS_UMBRA) {
@@ -695,12 +784,17 @@ void main() {
             int l0 = int(floor(ell)), l1 = min(l0 + 1, u_levels - 1);
             float f = l1 > l0 ? ell - float(l0) : 0.0;
             res.level = ell;
-            Occlusion o = gather(p, lo, hi, l0, res.count);
-            resolve(p, o, res);
+            int start = 0;
+            Occlusion o0 = gather(p, lo, hi, l0, res.count, 0, start);
+            Occlusion o1 = o0;
+            if (f > 0.0) o1 = gather(p, lo, hi, l1, res.count, 1, start);
+#if CHUNKED
+            if (u_chunk < u_chunks - 1) return;
+#endif
+            resolve(p, o0, res);
             if (f > 0.0) {
                 Result r1 = res;
-                o = gather(p, lo, hi, l1, res.count);
-                resolve(p, o, r1);
+                resolve(p, o1, r1);
                 res.v = mix(res.v, r1.v, f);
                 res.a_vis = mix(res.a_vis, r1.a_vis, f);
                 res.rgb = mix(res.rgb, r1.rgb, f);
@@ -708,7 +802,11 @@ void main() {
 #else
             int l = integer_level(lo, hi, budget);
             res.level = float(l);
-            Occlusion o = gather(p, lo, hi, l, res.count);
+            int start = 0;
+            Occlusion o = gather(p, lo, hi, l, res.count, 0, start);
+#if CHUNKED
+            if (u_chunk < u_chunks - 1) return;
+#endif
             resolve(p, o, res);
 #endif
         }
