@@ -248,7 +248,8 @@ class Frame:
         first = aa and self.settings.aa_visibility_sample == "FIRST"
         if aa:
             self.gbuffer_samples = multisampled_targets(self, size, full=first)
-            self._draw_gbuffer(self.gbuffer_samples, MSAA_SAMPLES, "gbuffer_msaa")
+            # the terminator lift matters only where visibility is computed (shading never reads it)
+            self._draw_gbuffer(self.gbuffer_samples, MSAA_SAMPLES, "gbuffer_msaa", lift=first)
         self.gbuffer = g                # dispatch binds it
         if first:
             with self.timings.stage("gbuffer_resolve"):
@@ -261,9 +262,9 @@ class Frame:
             self.count(msaa_edge_pixels=self.msaa_edges.count)
         return g
 
-    def _draw_gbuffer(self, targets: dict, samples: int, stage: str = "gbuffer") -> None:
+    def _draw_gbuffer(self, targets: dict, samples: int, stage: str = "gbuffer", lift: bool = True) -> None:
         """Draw the receivers from the camera into the G-buffer `targets` (with a depth buffer of `samples`),
-        timed as `stage`."""
+        timed as `stage`. `lift`: compute the shadow-terminator lift of smooth triangles (g_geometric.w)."""
         ctx, cam = self.ctx, self.snap.camera
         depth = self.depth_texture((self.width, self.height), samples)
         fbo = self.framebuffer(list(targets.values()), depth)
@@ -272,7 +273,7 @@ class Frame:
             fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
             ctx.enable(ctx.DEPTH_TEST)
             ctx.disable(ctx.CULL_FACE)
-            if self.geometry.has_smooth:    # the terminator lift needs each fragment's whole triangle
+            if lift and self.geometry.has_smooth:   # the lift needs each fragment's whole triangle
                 prog = program(self.worker, "common/gbuffer.vert", "common/gbuffer.frag",
                                geometry="common/gbuffer.geom", defines={"TERMINATOR_LIFT": 1})
             else:
