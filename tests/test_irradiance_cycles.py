@@ -216,7 +216,7 @@ CASE_SAMPLES = {"spot_wide_disk_narrow_cone": 2048}
 # Strict: the day the model matches, the xfail must go.
 XFAIL = {"spot_inside_sphere": "inside a spot's true sphere Cycles gives 4–9 % less near the sphere's surface than "
                                "the one-sided MIS model E = πL(3 + cosθ)/4 (exact on fuzz seed 52 at d = 0.4 r); "
-                               "not understood"}
+                               "measured here: mean relative error 4.2 %, Cycles/model 0.969; not understood"}
 
 
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(strict=True, reason=XFAIL[c]))
