@@ -270,7 +270,7 @@ def cycles_radius_share(d: np.ndarray, radius: float, soft_falloff: bool) -> np.
     emission axis (zero Z scale) at distances `d` from its centre. With the axis at zero the importance of
     the spot is proportional to the sine of the half angle θu its radius subtends (kernel/light/tree.h
     light_tree_importance, spot.h spot_light_tree_parameters), and θu comes from cos θu = d/√(r² + d²) (soft
-    falloff) or √(1 − r²/d²) (sphere) in float32: from about 2000·r to 4000·r that rounds to 1 for more
+    falloff) or √(1 − r²/d²) (sphere) in float32: from about 2800·r to 5800·r that rounds to 1 for more
     and more of the points, the importance to 0, and the light is not sampled (its BSDF hits on so small an
     emitter are too rare to count: measured, 1024 spp stay dark). Which points round depends on the low bits
     of d, so the same float32 operations are averaged over RESOLVE_STEPS distances around d."""
