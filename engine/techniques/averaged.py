@@ -104,6 +104,18 @@ def _fills_ball(light: Light, view, split: bool) -> bool:
     return foreshortening > light.radius / max(float(view.near), 1e-9)
 
 
+def _sphere_clip(light: Light, receivers) -> tuple:
+    """(clip sphere or None, whether plain maps are needed) for a true sphere light and the receivers' box.
+    Cycles' shadow rays towards a true sphere end on its surface: for a receiver outside it nothing inside the
+    sphere occludes, so its maps leave the casters inside out (frame.render_depth_layers' clip); a receiver
+    inside keeps the plain maps. Measured: tests/test_enclosing_lights.py."""
+    lo, hi = (np.asarray(b, float) for b in receivers)
+    c, r = np.asarray(light.position, float), float(light.radius)
+    nearest = np.linalg.norm(np.clip(c, lo, hi) - c)
+    farthest = np.linalg.norm(np.maximum(np.abs(lo - c), np.abs(hi - c)))
+    return ((c, r) if farthest > r else None), bool(nearest <= r)
+
+
 def tilted_sun(light: Light, offset: np.ndarray) -> Light:
     """The sun turned so that it shines along a direction of its disk: -Z + offset·(X, Y), normalised."""
     from dataclasses import replace
@@ -143,6 +155,7 @@ class AveragedMaps(Technique):
         spot = spot_uniforms(light)
         true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
+        clip, plain = _sphere_clip(light, lc.receivers) if true_sphere else (None, True)
         samples = []                        # (view, sample position, emission axis) per light sample
         for i, offset in enumerate(offsets):
             if i % 64 == 0:
@@ -167,14 +180,18 @@ class AveragedMaps(Technique):
             frame.progress.check()
             part = samples[first:first + batch]
             with frame.timings.stage("shadow_map"):
-                maps = frame.render_depth_layers([v for v, _, _ in part])
+                views = [v for v, _, _ in part]
+                maps = frame.render_depth_layers(views) if plain else None
+                outside = frame.render_depth_layers(views, clip_sphere=clip) if clip else maps
+                maps = maps or outside
             with frame.timings.stage("visibility"):
                 records = frame.buffer(_sample_records(part))
                 frame.dispatch("averaged/accumulate.comp", {
                     **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode, **spot},
-                    samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps}, images={0: sums},
-                    buffers={1: records})
-            frame.give_back(maps)           # the next batch draws into the same array
+                    samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps, "u_depth_maps_outside": outside},
+                    images={0: sums}, buffers={1: records})
+            for m in {id(maps): maps, id(outside): outside}.values():
+                frame.give_back(m)          # the next batch draws into the same array
             frame.give_back(records)
             done += len(part)
             frame.progress.step(done / len(samples), f"{light.name}: sample {done}/{len(samples)}")

@@ -9,6 +9,9 @@
 #include "common/spot.glsl"
 
 uniform sampler2DArray u_depth_maps;
+// A true sphere light: receivers outside it read maps without the casters inside the sphere, since Cycles'
+// shadow rays end on its surface (the same maps as u_depth_maps when no receiver is inside).
+uniform sampler2DArray u_depth_maps_outside;
 struct Sample {
     mat4 view;
     vec4 window;
@@ -44,7 +47,9 @@ void main() {
         ivec2 t = ivec2(floor(r.map.xy));
         float v = 1.0;              // outside the map counts as lit (map_lit)
         if (all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_map_size)))
-            v = texelFetch(u_depth_maps, ivec3(t, i), 0).r < receiver_depth_at(r, vec2(t) + 0.5) ? 0.0 : 1.0;
+            v = (inside_sphere ? texelFetch(u_depth_maps, ivec3(t, i), 0).r
+                               : texelFetch(u_depth_maps_outside, ivec3(t, i), 0).r)
+                < receiver_depth_at(r, vec2(t) + 0.5) ? 0.0 : 1.0;
         float w = 1.0;
         if (u_weight_mode == WEIGHT_SUN) {
             // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts
