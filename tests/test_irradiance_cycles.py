@@ -30,7 +30,7 @@ from penumbra.engine.core.settings import RenderSettings
 bpy = pytest.importorskip("bpy")
 OpenEXR = pytest.importorskip("OpenEXR")
 
-from penumbra.engine.core.irradiance import irradiance  # noqa: E402
+from penumbra.engine.core.irradiance import cycles_radius_share, irradiance  # noqa: E402
 from penumbra.engine.core.snapshot import Light  # noqa: E402
 
 W = H = 96
@@ -191,6 +191,13 @@ CASES = {
     "spot_nonuniform_scale": ("SPOT", dict(shadow_soft_size=0.05, energy=150.0, spot_size=math.radians(100),
                                            spot_blend=0.3),
                               dict(rotation=(0.3, -0.2, 0.0), scale=(2.0, 0.5, 0.7))),
+    # Spots with a zero scale axis (extract._singular_spot: Cycles' 1e-8 tweak of the singular inverse): a
+    # zero Z lights the half-space below the light's tilted X/Y plane, whatever the cone.
+    "spot_zero_z_scale_tilted": ("SPOT", dict(shadow_soft_size=0.05, energy=150.0, spot_size=math.radians(50),
+                                              spot_blend=0.2),
+                                 dict(rotation=(0.8, 0.0, 0.3), scale=(0.8, 1.6, 0.0))),
+    # A sun's zero X scale changes nothing in Cycles (its direction is the Z axis, its angle unscaled).
+    "sun_zero_x_scale": ("SUN", dict(angle=1.2, energy=3.0), dict(rotation=(0.5, 0.2, 0.0), scale=(0.0, 0.6, 3.0))),
     # A spot whose true sphere holds the receivers near it: no cone inside, one-sided for BSDF rays.
     "spot_inside_sphere": ("SPOT", dict(shadow_soft_size=2.0, energy=400.0, use_soft_falloff=False,
                                         spot_size=math.radians(40), spot_blend=0.2), {}),
@@ -206,12 +213,16 @@ CASES = {
 CASE_SAMPLES = {"spot_wide_disk_narrow_cone": 2048}
 
 
-@pytest.mark.parametrize("case", list(CASES))
+# Strict: the day the model matches, the xfail must go.
+XFAIL = {"spot_inside_sphere": "inside a spot's true sphere Cycles gives 4–9 % less near the sphere's surface than "
+                               "the one-sided MIS model E = πL(3 + cosθ)/4 (exact on fuzz seed 52 at d = 0.4 r); "
+                               "measured here: mean relative error 4.2 %, Cycles/model 0.969; not understood"}
+
+
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(strict=True, reason=XFAIL[c]))
+                                  if c in XFAIL else c for c in CASES])
 def test_irradiance_matches_cycles(case):
     kind, light_props, obj_props = CASES[case]
-    if case == "spot_inside_sphere":
-        pytest.xfail("inside a spot's true sphere Cycles gives 4–9 % less near the sphere's surface than the "
-                     "one-sided MIS model E = πL(3 + cosθ)/4 (exact on fuzz seed 52 at d = 0.4 r); not understood")
     scene, cam, planes, lob = _build_scene(kind, light_props, obj_props, CASE_SAMPLES.get(case, SAMPLES))
     img = _render_combined(scene)
 
@@ -263,6 +274,53 @@ def test_irradiance_matches_cycles(case):
     assert rel_gpu.mean() < 0.02, f"{case}: GPU Unshadowed mean relative error {rel_gpu.mean():.4f}"
 
 
+def test_spot_zero_z_scale_reach():
+    """A spot with a zero Z scale lights only where Cycles' light tree still resolves its radius in float32
+    (irradiance.cycles_radius_share): all of it within ~2800 radii, none beyond ~5800, a falling share
+    between. r = 5e-4 m puts that band on the visible ground (1.4–2.9 m from the light)."""
+    scene, cam, planes, lob = _build_scene("SPOT", dict(shadow_soft_size=5e-4, energy=150.0,
+                                                        spot_size=math.radians(50)),
+                                           dict(rotation=(0.3, 0.0, 0.0), scale=(1.0, 1.0, 0.0)))
+    img = _render_combined(scene).mean(-1).ravel()
+    ss = SUPERSAMPLE                                            # Cycles' box filter spans the pixel
+    pos, nrm, ids = _pixel_geometry(cam, planes, W * ss, H * ss)
+    hit = ~np.isnan(pos[:, 0])
+    light = _light_from_object(lob)
+    assert light.spot_axisless and light.power > 0.0
+    e = np.zeros(len(pos))
+    e[hit] = irradiance(light, pos[hit], nrm[hit]).mean(-1) / np.pi
+    share = np.zeros(len(pos))
+    share[hit] = cycles_radius_share(np.linalg.norm(pos[hit] - light.position, axis=1), light.radius, True)
+
+    def per_pixel(a, how):
+        return how(a.reshape(H, ss, W, ss), axis=(1, 3)).ravel()
+    pred = per_pixel(e, np.mean)
+    ids = ids.reshape(H, ss, W, ss)
+    one_plane = (ids.min(axis=(1, 3)) == ids.max(axis=(1, 3))).ravel() & (ids.min(axis=(1, 3)) >= 0).ravel()
+    bright = one_plane & (pred > 0.05 * pred.max())
+    full = bright & (per_pixel(share, np.min) == 1.0)
+    none = one_plane & (per_pixel(share, np.max) == 0.0)
+    band = one_plane & ~full & ~none
+    assert full.sum() > 150 and none.sum() > 150 and band.sum() > 150
+    # whole share: as every other light (2 %); the ground beyond reach: dark, as the half-space model is not
+    rel = np.abs(img[full] - pred[full]) / pred[full]
+    assert rel.mean() < 0.02, f"mean relative error where the share is 1: {rel.mean():.4f}"
+    assert np.all(img[none] < 0.02 * pred.max())
+    # the band: measured Cycles/prediction 0.91 (bins of d: Cycles' share 5-25 % below ours towards the far
+    # edge; its light tree tests more than the leaf's importance, e.g. the node's box, not modelled); the
+    # half-space without the share gives 0.45 here
+    ratio = img[band].sum() / pred[band].sum()
+    print(f"band Cycles/prediction {ratio:.3f}")
+    assert 0.85 < ratio < 1.02, f"Cycles/prediction over the band {ratio:.3f}"
+    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+    assert any("zero Z scale" in w for w in snap.warnings), snap.warnings
+    gpu = np.flipud(pipeline.render(snap, RenderSettings(technique="HARD")).passes["Unshadowed"]).mean(-1).ravel()
+    lit = full | band
+    ratio_gpu = gpu[lit].sum() / pred[lit].sum()
+    print(f"GPU/prediction {ratio_gpu:.4f}")
+    assert abs(ratio_gpu - 1.0) < 0.02, f"GPU Unshadowed/prediction {ratio_gpu:.4f}"
+
+
 # Lights Cycles renders no light from (measured: its image is exactly black), with the warning extraction gives.
 DARK_CASES = {
     "area_zero_size": ("AREA", dict(shape="SQUARE", size=0.0, energy=100.0), {}, "has zero size"),
@@ -270,6 +328,13 @@ DARK_CASES = {
                           dict(scale=(0.0, 1.0, 1.0)), "has zero size"),
     "area_zero_z_scale": ("AREA", dict(shape="SQUARE", size=1.0, energy=100.0), dict(scale=(1.0, 1.0, 0.0)),
                           "zero Z scale"),
+    "spot_zero_x_scale": ("SPOT", dict(shadow_soft_size=0.05, energy=150.0, spot_size=math.radians(90)),
+                          dict(rotation=(0.3, 0.0, 0.0), scale=(0.0, 1.0, 1.0)), "zero X or Y scale"),
+    "spot_zero_scale": ("SPOT", dict(shadow_soft_size=0.0, energy=150.0, spot_size=math.radians(70),
+                                     spot_blend=0.3), dict(rotation=(0.6, 0.0, 0.0), scale=(0.0, 0.0, 0.0)),
+                        "zero X or Y scale"),
+    "spot_zero_z_scale_no_radius": ("SPOT", dict(shadow_soft_size=0.0, energy=150.0),
+                                    dict(rotation=(0.3, 0.0, 0.0), scale=(1.0, 1.0, 0.0)), "no radius"),
     "sun_zero_z_scale": ("SUN", dict(angle=0.3, energy=3.0), dict(rotation=(0.5, 0.2, 0.0), scale=(1.0, 1.0, 0.0)),
                          "zero Z scale"),
 }

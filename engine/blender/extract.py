@@ -15,7 +15,8 @@ Behaviour that mirrors Cycles (intern/cycles/blender/light.cpp, scene/light.cpp)
     what Cycles effectively does (it skips the 1/area factor), so `power` keeps meaning watts;
   * lights Cycles renders no light from get power 0 and a warning (measured: tests/test_irradiance_cycles.py):
     a zero-size area light (size or X/Y object scale 0), an area light or a sun with a zero Z scale (no
-    emission direction). A point or spot light with zero scale still shines, as in Cycles.
+    emission direction), a spot with a zero X or Y scale. A point light with zero scale still shines, as in
+    Cycles; a spot with a zero Z scale lights a half-space (`_singular_spot`).
 """
 from __future__ import annotations
 
@@ -545,6 +546,7 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
             out.spot_scale = scale.copy()
             if getattr(light, "use_square", False):
                 warn(f"spot light '{name}' has a square cone: rendered with a round cone")
+            _singular_spot(name, out, matrix, scale, warn)
     elif kind == SUN:
         out.angle = float(light.angle)
         if scale[2] <= 0.0:
@@ -563,6 +565,47 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
             area = 1.0
         out.power *= area
     return out
+
+
+def _singular_spot(name: str, out: Light, matrix: np.ndarray, scale: np.ndarray, warn) -> None:
+    """A spot whose object scale has a zero axis, as Cycles renders it. Cycles takes each ray to the spot's
+    frame with the inverse object matrix (kernel/light/spot.h), and inverts a singular matrix by adding 1e-8
+    to its diagonal (util/transform.h, transform_inverse_impl). A zero X or Y axis then blows that local
+    coordinate up, the ray's local z goes to 0 and the cone's smoothstep to 0: no light. A zero Z axis
+    becomes (0, 0, 1e-8), so the local z of every ray is ±1 by the side of the light's X/Y plane it leaves
+    on: the cone opens to the whole half-space on the side of that plane that world -Z points into (the
+    sign of the tweak), whatever the light's own direction; and its light-tree importance, built on the
+    zero emission axis, vanishes where float32 no longer resolves the radius (`spot_axisless`).
+    Measured: tests/test_irradiance_cycles.py (an all-zero scale renders black too)."""
+    if scale[0] <= 0.0 or scale[1] <= 0.0:
+        warn(f"spot light '{name}' has a zero X or Y scale: Cycles renders no light from it, and neither "
+             "does Penumbra")
+        out.power = 0.0
+        return
+    if scale[2] > 0.0:
+        return
+    normal = np.cross(matrix[:3, 0], matrix[:3, 1])       # the light's X/Y plane
+    if normal[2] == 0.0:
+        # the tweak lies in the plane: the inverse stays singular and Cycles' cone is empty
+        warn(f"spot light '{name}' has a zero Z scale and a vertical X/Y plane: Cycles renders no light "
+             "from it, and neither does Penumbra")
+        out.power = 0.0
+        return
+    if out.radius <= 0.0:
+        # no radius, no importance in Cycles' light tree anywhere (irradiance.cycles_radius_share)
+        warn(f"spot light '{name}' has a zero Z scale and no radius: Cycles renders no light from it, and "
+             "neither does Penumbra")
+        out.power = 0.0
+        return
+    frame = np.array(matrix, dtype=np.float64)
+    frame[:3, 2] = normal * np.sign(normal[2])           # lit half-space: local -Z, below the plane
+    out.matrix = orthonormal_frame(frame, 2, 0)
+    out.spot_scale = np.array([1.0, 1.0, 0.0])           # the cone: every direction on the lit side
+    out.spot_axisless = True
+    reach = out.radius * 4096.0
+    warn(f"spot light '{name}' has a zero Z scale: as in Cycles, it lights the half-space below its X/Y "
+         f"plane, whatever its cone, and only within about {reach:.3g} m of it, where Cycles' light tree "
+         "still samples it")
 
 
 # ----------------------------------------------------------------------------------------------------------

@@ -19,7 +19,8 @@ Conventions, all measured against Cycles 5.0 (see tests/test_irradiance_cycles.p
   SPOT   as POINT, times the cone attenuation of `spot_attenuation` (no extra cosine); with r > 0
          Cycles evaluates the cone per ray, so it is integrated over the emitter here (over the cone's
          footprint on the emitter when that is small). Inside a true sphere: no cone, and E = πL(3 + cosθ)/4
-         (only BSDF rays heading to the centre hit a spot's sphere; see `_sphere_light`).
+         (only BSDF rays heading to the centre hit a spot's sphere; see `_sphere_light`). A spot with a
+         zero Z scale (`spot_axisless`) lights only where `cycles_radius_share` says.
   SUN    angle 0: E = S·cosθ.  angle α > 0: a cone of directions of half angle β = α/2 with
          L = S / (π sin²β), i.e. E = S when facing the sun (closed form of the clipped cone,
          `cap_form_factor`, exact up to α = 180°).
@@ -259,6 +260,32 @@ def _spot_footprint(light: Light, centre, rr, x, n) -> np.ndarray:
     return out
 
 
+# Relative steps of the distances cycles_radius_share averages over (64 of them, 32 float32 ulps apart): far
+# below the spread of Cycles' own shading points in a pixel, wide enough to sample the rounding's low bits.
+RESOLVE_STEPS, RESOLVE_STEP = 64, 2.0 ** -18
+
+
+def cycles_radius_share(d: np.ndarray, radius: float, soft_falloff: bool) -> np.ndarray:
+    """Share of Cycles' samples, (N,) in [0, 1], in which its light tree still sees a spot without an
+    emission axis (zero Z scale) at distances `d` from its centre. With the axis at zero the importance of
+    the spot is proportional to the sine of the half angle θu its radius subtends (kernel/light/tree.h
+    light_tree_importance, spot.h spot_light_tree_parameters), and θu comes from cos θu = d/√(r² + d²) (soft
+    falloff) or √(1 − r²/d²) (sphere) in float32: from about 2800·r to 5800·r that rounds to 1 for more
+    and more of the points, the importance to 0, and the light is not sampled (its BSDF hits on so small an
+    emitter are too rare to count: measured, 1024 spp stay dark). Which points round depends on the low bits
+    of d, so the same float32 operations are averaged over RESOLVE_STEPS distances around d."""
+    r = np.float32(radius)
+    steps = (np.arange(RESOLVE_STEPS) - 0.5 * (RESOLVE_STEPS - 1)) * RESOLVE_STEP
+    d32 = (np.asarray(d, np.float64)[:, None] * (1.0 + steps)[None, :]).astype(np.float32)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if soft_falloff:
+            cos_u = d32 / np.sqrt(r * r + d32 * d32)
+        else:
+            s = r / d32
+            cos_u = np.where(d32 > r, np.sqrt(np.float32(1.0) - s * s), np.float32(-1.0))
+    return np.mean(cos_u < np.float32(1.0), axis=1)
+
+
 def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
     """E per unit colour for a POINT or SPOT light (spot attenuation included), (N,) array."""
     P = float(light.power)
@@ -314,7 +341,10 @@ def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
     inside_e = radiance * np.pi
     if is_spot:
         inside_e = inside_e * (0.75 + 0.25 * np.sum(axis * n, axis=-1))
-    return np.where(inside, inside_e, e)
+    e = np.where(inside, inside_e, e)
+    if is_spot and getattr(light, "spot_axisless", False):
+        e = e * cycles_radius_share(d, r, getattr(light, "use_soft_falloff", True))
+    return e
 
 
 def irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:

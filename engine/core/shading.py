@@ -46,6 +46,7 @@ def _light_values(light: Light) -> dict:
         "u_axis_v": (0.0, 0.0, 0.0), "u_radius": 0.0, "u_one_sided": 0,
         "u_spot_tan_wide": spot_tan_wide(light) if light.kind == SPOT else 0.0,   # irradiance.glsl's footprint
         "u_soft_falloff": int(light.use_soft_falloff),
+        "u_spot_axisless": int(light.kind == SPOT and light.spot_axisless),
     }
     if light.kind == AREA and not light.is_delta:
         u.update(u_shape=LIGHT_POLYGON, u_one_sided=1,

@@ -34,6 +34,9 @@ class Light:
     spot_blend: float = 0.0         # SPOT: 0..1
     spot_scale: np.ndarray = field(default_factory=lambda: np.ones(3))  # SPOT: object scale (shapes the cone)
     use_soft_falloff: bool = True   # POINT/SPOT: Cycles' soft falloff (emitter = disk facing the receiver)
+    # SPOT with a zero Z scale: no emission axis, so Cycles' light tree gives it importance only where float32
+    # still resolves its radius from the receiver (irradiance.cycles_radius_share).
+    spot_axisless: bool = False
     # AREA: emission texture, (H, W, 3) linear RGB over the light's local [-1, 1]² (row 0 at local y = -1,
     # column 0 at x = -1), normalised to mean 1; its mean colour is folded into `color`. None: uniform.
     texture: np.ndarray | None = None

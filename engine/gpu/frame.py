@@ -362,11 +362,12 @@ class Frame:
         prog = program(self.worker, "common/depth.vert", "common/depth.frag")
         return self.rasterise(target, prog, view.view, view.view_proj)
 
-    def render_depth_layers(self, views):
+    def render_depth_layers(self, views, clip_sphere=None):
         """Depth maps of the casters from each of `views` (at most MAX_DEPTH_LAYERS) as the layers of one
         R32F texture array (the largest view's size; a smaller map fills its layer's lower-left corner), in
         one draw: common/depth_layers.geom sends each triangle to every layer, and MIN blending keeps the
-        nearest linear depth (NO_OCCLUDER where empty), texel for texel what render_depth_map gives."""
+        nearest linear depth (NO_OCCLUDER where empty), texel for texel what render_depth_map gives.
+        `clip_sphere` (centre, radius): casters inside that sphere are left out."""
         w, h = max(v.width for v in views), max(v.height for v in views)
         maps = self.texture_array((w, h, len(views)), 1)
         fbo = self.framebuffer([maps])
@@ -379,11 +380,16 @@ class Frame:
             rec[k, 0:16] = np.asarray(v.view, np.float32).T.ravel()
             rec[k, 16:32] = np.asarray(v.view_proj, np.float32).T.ravel()
             rec[k, 32:34] = (v.width / w, v.height / h)
+        defines = {"MAX_LAYERS": MAX_DEPTH_LAYERS}
+        uniforms = {"u_count": len(views)}
+        if clip_sphere is not None:
+            defines["CLIP_SPHERE"] = 1
+            uniforms["u_clip_sphere"] = (*map(float, clip_sphere[0]), float(clip_sphere[1]) ** 2)
         prog = program(self.worker, "common/depth_layers.vert", "common/depth.frag",
-                       geometry="common/depth_layers.geom", defines={"MAX_LAYERS": MAX_DEPTH_LAYERS})
+                       geometry="common/depth_layers.geom", defines=defines)
         layer_views = self.buffer(rec.tobytes())
         layer_views.bind_to_storage_buffer(0)
-        set_uniforms(prog, {"u_count": len(views)})
+        set_uniforms(prog, uniforms)
         with gl_state(self.ctx, depth_test=False, cull=False, minimum=True):
             self.geometry.render(self.ctx, prog, "caster", position_only=True)
         self.give_back(layer_views)

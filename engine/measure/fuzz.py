@@ -426,7 +426,8 @@ def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = 
         v = result.passes["Visibility"][..., 0]
         m = compare(v, cyc.ref.visibility, cyc.ref.mask)
         b = bound(technique, floor, m["n_shadow"])
-        u = unshadowed_error(result.passes["Irradiance"] / np.pi, cyc.ref.unshadowed, cyc.ref.mask)
+        u = unshadowed_error(result.passes["Irradiance"] / np.pi, cyc.ref.unshadowed, cyc.ref.mask,
+                             result.passes["Depth"][..., 0], pipeline.BACKGROUND_DEPTH)
         mae = m["mae_shadow"] if m["n_shadow"] else 0.0     # no shadow on either side: nothing to miss
         status = "ok"
         if not mae <= b:

@@ -4,7 +4,8 @@ against (e.g. Atty et al. §4.1). Penumbra's own ground truth is Cycles (engine/
 
 Sample points: an R2 low-discrepancy set over the square, mapped to the disk by Shirley & Chiu's concentric
 map for round lights. Sphere lights are sampled over their great disk facing the receivers (the view's XY
-plane); suns uniformly over their cone of directions, each weighted by the receiver's cosine. Each map's view keeps the light's axes and is refitted from the
+plane); a true sphere's receivers outside it over its ball without the casters inside it, those inside it
+over its surface; suns uniformly over their cone of directions, each weighted by the receiver's cosine. Each map's view keeps the light's axes and is refitted from the
 sample point.
 """
 from __future__ import annotations
@@ -13,7 +14,8 @@ import numpy as np
 
 from ..core import lightview
 from ..core.shading import spot_uniforms
-from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE, WEIGHT_SUN
+from ..core.shader_constants import (SIDE_ALL, SIDE_INSIDE, SIDE_OUTSIDE, WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE,
+                                     WEIGHT_SUN)
 from ..core.snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 from ..gpu.frame import MAX_DEPTH_LAYERS
 from .base import MAP_SIZE_SWEEP, Option, Technique
@@ -47,6 +49,20 @@ def concentric_disk(q: np.ndarray) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1)
 
 
+def _unit_directions(u: np.ndarray) -> np.ndarray:
+    """(n, 3) points uniform on the unit sphere from (n, 2) points uniform in [0, 1)² (Archimedes' z)."""
+    z = 1.0 - 2.0 * u[:, 0]
+    phi = 2.0 * np.pi * u[:, 1]
+    ring = np.sqrt(np.maximum(1.0 - z * z, 0.0))
+    return np.stack([ring * np.cos(phi), ring * np.sin(phi), z], axis=1)
+
+
+def sphere_surface(n: int, seed: int = 0) -> np.ndarray:
+    """n points uniform over the unit sphere, stratified with `r_sequence`: a true sphere light's emitter as
+    its receivers inside it see it (every direction ends on the surface)."""
+    return _unit_directions(r_sequence(n, 2, seed))
+
+
 def projected_disk_ball(n: int, seed: int = 0) -> np.ndarray:
     """n points in the unit ball whose projection along ANY direction is uniform over the unit disk: radial
     density ∝ 1/√(1 − r²) (its integral along a chord at distance ρ from the centre is π for every ρ). A point
@@ -54,10 +70,7 @@ def projected_disk_ball(n: int, seed: int = 0) -> np.ndarray:
     sphere's silhouette far away); points on one fixed disk would be foreshortened for receivers off its axis.
     Stratified with `r_sequence`."""
     u = r_sequence(n, 3, seed)
-    z = 1.0 - 2.0 * u[:, 0]
-    phi = 2.0 * np.pi * u[:, 1]
-    ring = np.sqrt(np.maximum(1.0 - z * z, 0.0))
-    direction = np.stack([ring * np.cos(phi), ring * np.sin(phi), z], axis=1)
+    direction = _unit_directions(u[:, :2])
     # r = sin ψ with CDF (ψ − sin ψ cos ψ)/(π/2); Newton steps
     target = u[:, 2] * np.pi / 2.0
     psi = np.full(n, np.pi / 4.0)
@@ -104,6 +117,19 @@ def _fills_ball(light: Light, view, split: bool) -> bool:
     return foreshortening > light.radius / max(float(view.near), 1e-9)
 
 
+def _sphere_clip(light: Light, receivers) -> tuple:
+    """(clip sphere or None, whether any receiver may be inside) for a true sphere light and the receivers'
+    box. Cycles' shadow rays towards a true sphere end on its surface: for a receiver outside it nothing inside
+    the sphere occludes, so its maps leave the casters inside out (frame.render_depth_layers' clip); from a
+    receiver inside it every direction ends on the surface, so those sample the surface with every caster.
+    Measured: tests/test_enclosing_lights.py."""
+    lo, hi = (np.asarray(b, float) for b in receivers)
+    c, r = np.asarray(light.position, float), float(light.radius)
+    nearest = np.linalg.norm(np.clip(c, lo, hi) - c)
+    farthest = np.linalg.norm(np.maximum(np.abs(lo - c), np.abs(hi - c)))
+    return ((c, r) if farthest > r else None), bool(nearest <= r)
+
+
 def tilted_sun(light: Light, offset: np.ndarray) -> Light:
     """The sun turned so that it shines along a direction of its disk: -Z + offset·(X, Y), normalised."""
     from dataclasses import replace
@@ -143,7 +169,44 @@ class AveragedMaps(Technique):
         spot = spot_uniforms(light)
         true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
-        samples = []                        # (view, sample position, emission axis) per light sample
+        # Sample sets: every receiver from `offsets`, except for a true sphere, whose receivers outside it
+        # read maps without the casters inside it and whose receivers inside it sample its surface.
+        sets = [(offsets, None, SIDE_ALL)]
+        if true_sphere:
+            clip, inside = _sphere_clip(light, lc.receivers)
+            sets = ([(offsets, clip, SIDE_OUTSIDE)] if clip else []) + \
+                   ([(sphere_surface(n, s.seed) * light.radius, None, SIDE_INSIDE)] if inside else [])
+        total = sum(len(o) for o, _, _ in sets)
+        done = 0
+        for set_offsets, clip, side in sets:
+            samples = self._samples(frame, lc, set_offsets)
+            # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
+            largest = max(v.width * v.height for v, _, _ in samples)
+            batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
+            for first in range(0, len(samples), batch):
+                frame.progress.check()
+                part = samples[first:first + batch]
+                with frame.timings.stage("shadow_map"):
+                    maps = frame.render_depth_layers([v for v, _, _ in part], clip_sphere=clip)
+                with frame.timings.stage("visibility"):
+                    records = frame.buffer(_sample_records(part))
+                    frame.dispatch("averaged/accumulate.comp", {
+                        **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode,
+                        "u_side": side, **spot},
+                        samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps}, images={0: sums},
+                        buffers={1: records})
+                frame.give_back(maps)           # the next batch draws into the same array
+                frame.give_back(records)
+                done += len(part)
+                frame.progress.step(done / total, f"{light.name}: sample {done}/{total}")
+        frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})
+
+    @staticmethod
+    def _samples(frame, lc, offsets) -> list:
+        """(view, sample position, emission axis) per light sample: each map's view keeps the light's axes and
+        is refitted from the sample point (a sun's turned towards its sample direction)."""
+        s, light = frame.settings, lc.light
+        samples = []
         for i, offset in enumerate(offsets):
             if i % 64 == 0:
                 frame.progress.check()      # thousands of views take a while to fit: stay cancellable
@@ -159,26 +222,7 @@ class AveragedMaps(Technique):
                                      frame=lc.view.frame, face=lc.view.face)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
             samples.append((view, sample_world, emit))
-        # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
-        largest = max(v.width * v.height for v, _, _ in samples)
-        batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
-        done = 0
-        for first in range(0, len(samples), batch):
-            frame.progress.check()
-            part = samples[first:first + batch]
-            with frame.timings.stage("shadow_map"):
-                maps = frame.render_depth_layers([v for v, _, _ in part])
-            with frame.timings.stage("visibility"):
-                records = frame.buffer(_sample_records(part))
-                frame.dispatch("averaged/accumulate.comp", {
-                    **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode, **spot},
-                    samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps}, images={0: sums},
-                    buffers={1: records})
-            frame.give_back(maps)           # the next batch draws into the same array
-            frame.give_back(records)
-            done += len(part)
-            frame.progress.step(done / len(samples), f"{light.name}: sample {done}/{len(samples)}")
-        frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})
+        return samples
 
 
 BATCH_BYTES = 64 << 20          # at most this much texture array per batch

@@ -9,6 +9,9 @@
 #include "common/spot.glsl"
 
 uniform sampler2DArray u_depth_maps;
+// SIDE_ALL, or for a true sphere light SIDE_OUTSIDE (maps without the casters inside it: Cycles' rays end on
+// its surface) or SIDE_INSIDE (samples on its surface, every caster): the receivers this set serves.
+uniform int u_side;
 struct Sample {
     mat4 view;
     vec4 window;
@@ -34,6 +37,7 @@ void main() {
     vec4 sums = imageLoad(u_sums, px);
     vec3 from_centre = p - u_sphere_inside.xyz;
     bool inside_sphere = dot(from_centre, from_centre) <= u_sphere_inside.w;
+    if ((u_side == SIDE_OUTSIDE && inside_sphere) || (u_side == SIDE_INSIDE && !inside_sphere)) return;
     for (int i = 0; i < u_count; ++i) {
         Sample s = samples[i];
         u_light_view = s.view;
@@ -60,12 +64,23 @@ void main() {
                 // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
                 // sphere Cycles applies no cone.
                 if (u_spot_cos_half > -1.0 && !inside_sphere) w *= spot_attenuation(-to_light);
+                if (u_side == SIDE_INSIDE) {
+                    // uniform points of the surface seen from inside: dω = cosθ_surface·dA/d²; a spot's sphere
+                    // is one-sided for BSDF rays (those towards its centre), which MIS weighs as much again
+                    // (shading/irradiance.glsl, E = πL(3 + cosθ)/4)
+                    w *= abs(dot(to_light, normalize(s.position.xyz - u_sphere_inside.xyz)));
+                    if (u_spot_cos_half > -1.0 && dot(to_light, -from_centre) > 0.0) w *= 2.0;
+                }
             }
         }
         Receiver r = make_lit_receiver(p, ng, n, lift, to_light);
         ivec2 t = ivec2(floor(r.map.xy));
         float v = 1.0;              // outside the map counts as lit (map_lit)
-        if (all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_map_size)))
+        bool in_map = all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_map_size));
+        // A surface sample whose view a receiver inside the sphere is behind, or off, cannot test it: left
+        // out, as counting it lit brightens every receiver the surface surrounds
+        if (u_side == SIDE_INSIDE && !(in_map && r.local.z < 0.0)) continue;
+        if (in_map)
             v = texelFetch(u_depth_maps, ivec3(t, i), 0).r < receiver_depth_at(r, vec2(t) + 0.5) ? 0.0 : 1.0;
         sums += vec4(w * v, w, v, 1.0);
     }

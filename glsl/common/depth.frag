@@ -1,6 +1,16 @@
 in float v_depth;
 layout(location = 0) out float f_depth;
+#ifdef CLIP_SPHERE
+// A true sphere light's maps for receivers outside it: Cycles' shadow rays end on the sphere's surface, so
+// nothing inside the sphere occludes them (averaged.py).
+in vec3 v_position;
+uniform vec4 u_clip_sphere;     // centre, r²
+#endif
 
 void main() {
+#ifdef CLIP_SPHERE
+    vec3 from_centre = v_position - u_clip_sphere.xyz;
+    if (dot(from_centre, from_centre) < u_clip_sphere.w) discard;
+#endif
     f_depth = v_depth;
 }

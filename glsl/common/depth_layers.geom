@@ -16,6 +16,9 @@ uniform int u_count;
 
 in vec4 v_world[];
 out float v_depth;
+#ifdef CLIP_SPHERE
+out vec3 v_position;            // world position, for common/depth.frag's sphere clip
+#endif
 
 void main() {
     int layer = gl_InvocationID;
@@ -27,6 +30,9 @@ void main() {
         clip.xy = clip.xy * lv.scale.xy + (lv.scale.xy - 1.0) * clip.w;
         gl_Position = clip;
         v_depth = -(lv.view * world).z;
+#ifdef CLIP_SPHERE
+        v_position = world.xyz;
+#endif
         gl_Layer = layer;
         EmitVertex();
     }

@@ -35,6 +35,26 @@ uniform float u_radius;        // sphere radius, or tan(angle/2) for the sun
 uniform vec3 u_radiance;       // polygon/sphere/sun radiance, or point intensity (W/sr), RGB
 uniform int u_one_sided;       // area lights emit only towards u_emit_dir
 uniform int u_soft_falloff;    // sphere lights: disk facing x (1) or true sphere (0)
+uniform int u_spot_axisless;   // a spot with a zero Z scale: lit only where Cycles' light tree sees it
+
+// Share of Cycles' samples in which its light tree still sees a spot without an emission axis: the float32
+// operations of engine/core/irradiance.py cycles_radius_share, averaged over the same 64 distances around d.
+float cycles_radius_share(vec3 to_light) {
+    float d0 = sqrt(dot(to_light, to_light));
+    float seen = 0.0;
+    for (int j = 0; j < 64; j++) {
+        float d = d0 * (1.0 + (float(j) - 31.5) * 3.814697265625e-6);   // steps of 2^-18
+        float cos_u;
+        if (u_soft_falloff == 1) {
+            cos_u = d / sqrt(u_radius * u_radius + d * d);
+        } else {
+            float s = u_radius / d;
+            cos_u = d > u_radius ? sqrt(1.0 - s * s) : -1.0;
+        }
+        seen += cos_u < 1.0 ? 1.0 : 0.0;
+    }
+    return seen / 64.0;
+}
 
 // One edge's term θ · n·(a×b)/|a×b|. θ/sinθ comes from the rational fit of Hill & Heitz ("Real-Time Area
 // Lighting: a Journey from Research to Production", SIGGRAPH 2016 course, §"integrating edges"): far
@@ -224,6 +244,9 @@ vec3 light_irradiance(vec3 x, vec3 n) {
         float t2 = u_radius * u_radius;
         return u_radiance * cap_form_factor(cos_t, t2 / (1.0 + t2));
     }
+    float axisless = LIGHT_SPOT == 1 && u_spot_axisless == 1 ? cycles_radius_share(to_light) : 1.0;
+    if (axisless <= 0.0) return vec3(0.0);
+    vec3 radiance = u_radiance * axisless;
     vec3 dir, center;
     float rho;
     if (u_soft_falloff == 1) {
@@ -239,7 +262,7 @@ vec3 light_irradiance(vec3 x, vec3 n) {
         // share plus half of the BSDF rays' share, (1 + cosθ)/2 of the hemisphere: E = π·L·(3 + cosθ)/4.
         if (d <= u_radius) {
             float cos_c = d > 0.0 ? dot(n, to_light) / d : 1.0;
-            return u_radiance * (3.14159265359 * (LIGHT_SPOT == 1 ? 0.75 + 0.25 * cos_c : 1.0));
+            return radiance * (3.14159265359 * (LIGHT_SPOT == 1 ? 0.75 + 0.25 * cos_c : 1.0));
         }
         dir = to_light / max(length(to_light), 1e-30);
         float r2 = u_radius * u_radius;
@@ -250,17 +273,17 @@ vec3 light_irradiance(vec3 x, vec3 n) {
     if (rho * rho < SMALL_LIGHT * SMALL_LIGHT * c2) {
         // A small disk facing x (cosθ_light = 1): E = L·π·ρ²·cosθ_x / d².
         float spot = LIGHT_SPOT == 1 ? spot_attenuation(-center) : 1.0;
-        return u_radiance * (spot * 3.14159265359 * rho * rho * max(dot(n, dir), 0.0) / max(c2, 1e-38));
+        return radiance * (spot * 3.14159265359 * rho * rho * max(dot(n, dir), 0.0) / max(c2, 1e-38));
     }
     vec3 u = orthogonal(dir) * rho;
     vec3 v = cross(dir, u);
     if (LIGHT_SPOT == 1) {
         float through_footprint = spot_footprint(center, rho, n);
-        if (through_footprint >= 0.0) return u_radiance * through_footprint;
+        if (through_footprint >= 0.0) return radiance * through_footprint;
     }
     float spot = LIGHT_SPOT == 1 ? spot_over_disk(center, u, v, n) : 1.0;
     if (spot <= 0.0) return vec3(0.0);
-    return u_radiance * spot * (0.5 * clipped_polygon_sum(center, u, v, 32, n));
+    return radiance * spot * (0.5 * clipped_polygon_sum(center, u, v, 32, n));
 }
 
 // What the shading passes store for a covered receiver: irradiance clamped at zero, NaN/Inf dropped, and its
