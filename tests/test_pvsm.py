@@ -301,3 +301,26 @@ def test_conservative_search_map_at_the_search_size(plane, monkeypatch):
     assert result.stats["structure_bytes"][CONSERVATIVE_MAP] <= 256 * 256 * 20 + 256 * 4
     err, on_ground = _ground_error(snap, pts, exact, result)
     assert err[on_ground & (exact < 0.99)].mean() < 0.01
+
+
+def test_search_map_reduction_of_blocks_past_the_loop_limit_finds_their_last_texel():
+    """pvsm_search_size 16 from a 4096² map reduces 256² texels into each: one reduce.comp pass ran
+    65792 loop iterations per texel, past llvmpipe's limit (65535), and missed its block's last row. In
+    steps of REDUCE_STEP² the minimum of a 512² block is found wherever it lies (here: its last texel)."""
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    from penumbra.tests.test_spsm import _snapshot
+    src = np.ones((512, 512), np.float32)
+    src[511, 511] = 0.25                                # the block's minimum, in its last row
+    src[0, 3] = 0.5
+
+    def job(worker, _job):
+        frame = Frame(worker, _snapshot(np.zeros((1, 3, 3))), RenderSettings())
+        try:
+            tex = frame.texture((512, 512), 1)
+            tex.write(src.tobytes())
+            out = pvsm.Pvsm._reduce(frame, tex, (512, 512), 512)
+            return frame.read(out)[..., 0].copy()
+        finally:
+            frame.release()
+    assert GpuWorker.get().run(job).ravel().tolist() == [0.25]

@@ -46,6 +46,8 @@ from ..structures.conservative_map import CONSERVATIVE_MAP
 from .backprojection import is_round, level_count
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
 
+REDUCE_STEP = 16                # block side of one reduction pass (engine/gpu/loops.py: the loop limit)
+
 # The map the blocker search reads, min-reduced to pvsm_search_size. The paper's is conservative (§5.2 step 2);
 # CONSERVATIVE_MAP here renders one at pvsm_search_size, but measured at 128², 1024² map against Cycles it is
 # no better anywhere and worse on `contact` (mae_shadow 0.031 → 0.040: the edge-on faces' conservative minimum
@@ -332,12 +334,17 @@ class Pvsm(Technique):
 
     @staticmethod
     def _reduce(frame, src, size, block):
-        """A map `block` times coarser, each texel the minimum depth of its block (glsl/pvsm/reduce.comp)."""
-        out_size = (-(-size[0] // block), -(-size[1] // block))
-        out = frame.texture(out_size, 1)
-        frame.dispatch("pvsm/reduce.comp", {"u_src_size": tuple(size), "u_block": int(block)},
-                       samplers={"u_src": src}, images={0: out}, size=out_size)
-        return out
+        """A map `block` times coarser, each texel the minimum depth of its block (glsl/pvsm/reduce.comp), in
+        steps of at most REDUCE_STEP² texels (a 4096² map to a 16² search map, 256² per texel in one step, passes
+        llvmpipe's loop limit; a min of mins is the same min)."""
+        while block > 1:
+            step = min(block, REDUCE_STEP)
+            out_size = (-(-size[0] // step), -(-size[1] // step))
+            out = frame.texture(out_size, 1)
+            frame.dispatch("pvsm/reduce.comp", {"u_src_size": tuple(size), "u_block": int(step)},
+                           samplers={"u_src": src}, images={0: out}, size=out_size)
+            src, size, block = out, out_size, -(-block // step)
+        return src
 
     def _gather(self, frame, lc, info):
         a = frame.read(info)
