@@ -365,3 +365,17 @@ def test_filter_split_over_dispatches_equals_one_dispatch(big_light, monkeypatch
     assert split.stats["per_light"][0]["filter_dispatches"] > 10
     a, b = whole.passes["Visibility"][..., 0], split.passes["Visibility"][..., 0]
     assert (a < 0.9).sum() > 30 and np.abs(a - b).max() < 1e-5
+
+
+def test_search_box_past_the_loop_limit_is_cut_with_a_warning(big_light):
+    """pvsm_search_radius 1 over a 4096² search map under a big light: at the coarsest search level the box
+    spans 512² cells, past llvmpipe's loop limit; the search stopped part-way (big_light mae_shadow 0.048,
+    errors of 1). It is cut to PVSM_SEARCH_CELLS per axis around the receiver, with a warning naming the
+    settings: as accurate as radius 0.15, which needs no cut (0.0128)."""
+    snap, truth = big_light
+    s = RenderSettings(technique="PVSM", shadow_map_size=4096).with_(pvsm_search_size=4096)
+    wide = pipeline.render(snap, s.with_(pvsm_search_radius=1.0))
+    narrow = pipeline.render(snap, s.with_(pvsm_search_radius=0.15))
+    assert any("pvsm_search_radius" in w for w in wide.warnings) and not narrow.warnings
+    err = np.abs(wide.passes["Visibility"][..., 0] - truth)
+    assert err[truth < 0.999].mean() < 0.02 and np.nanmax(err) < 0.2, (err[truth < 0.999].mean(), np.nanmax(err))

@@ -238,12 +238,12 @@ class Pvsm(Technique):
         # The low-resolution search map: min-reduced to about pvsm_search_size, and three levels that halve it
         # for search boxes wider than the cap (a light near its occluders).
         fine_block = max(1, 1 << max(0, int(math.ceil(math.log2(max(search_size) / int(o["pvsm_search_size"]))))))
-        # visibility.comp cuts a search box wider than PVSM_SEARCH_CELLS − 2 cells of its coarsest level (8 fine
+        # visibility.comp cuts a search box wider than PVSM_SEARCH_CELLS cells of its coarsest level (8 fine
         # blocks), keeping the search loop under llvmpipe's loop limit (engine/gpu/loops.py).
         reach = float(o["pvsm_search_radius"]) + (0.5 if o["pvsm_antialiasing"] else 0.0)   # AA: ≤ ½ map
-        if reach * max(search_size) > 0.5 * (PVSM_SEARCH_CELLS - 2) * 8 * fine_block:
-            frame.warn(f"PVSM: light '{light.name}': blocker search held to {PVSM_SEARCH_CELLS} cells per axis of "
-                       f"its coarsest level (pvsm_search_radius × pvsm_search_size too large for the loop limit)")
+        if min(2.0 * reach, 1.0) * max(search_size) > PVSM_SEARCH_CELLS * 8 * fine_block:
+            frame.warn(f"PVSM: light '{light.name}': blocker search held to {PVSM_SEARCH_CELLS} cells per axis "
+                       f"of its coarsest level (pvsm_search_radius × pvsm_search_size too large for the loop limit)")
         with frame.timings.stage("pvsm_search_map"):
             levels = [self._reduce(frame, search, search_size, fine_block)]
             for _ in range(3):

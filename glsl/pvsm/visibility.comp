@@ -136,13 +136,17 @@ vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
     e += pad;
     // The finest level whose cells the box spans at most u_cap times (the coarsest one past that).
     int l = 0;
-    int cap = min(u_cap, PVSM_SEARCH_CELLS);
+    int cap = min(u_cap, PVSM_SEARCH_CELLS - 2);
     while (l < 3 && 2.0 * max(e.x, e.y) > float(cap * (u_fine_block << l))) ++l;
     float s = float(u_fine_block << l);
-    e = min(e, vec2(0.5 * float(PVSM_SEARCH_CELLS - 2) * s));
     ivec2 cells = search_cells(l);
     ivec2 i0 = max(ivec2(floor((c - e) / s)), ivec2(0));
     ivec2 i1 = min(ivec2(floor((c + e) / s)), cells - 1);
+    // The loop limit (engine/gpu/loops.py): a box wider than PVSM_SEARCH_CELLS cells of the coarsest level
+    // is cut to that many around c, as far as the map allows (pvsm.py warns where it can happen).
+    ivec2 ci = ivec2(floor(c / s));
+    i0 = max(i0, min(ci - PVSM_SEARCH_CELLS / 2, i1 - PVSM_SEARCH_CELLS + 1));
+    i1 = min(i1, i0 + PVSM_SEARCH_CELLS - 1);
     float sum = 0.0, weight = 0.0;
     for (int j = i0.y; j <= i1.y; ++j) {
         for (int i = i0.x; i <= i1.x; ++i) {
