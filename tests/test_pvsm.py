@@ -301,3 +301,81 @@ def test_conservative_search_map_at_the_search_size(plane, monkeypatch):
     assert result.stats["structure_bytes"][CONSERVATIVE_MAP] <= 256 * 256 * 20 + 256 * 4
     err, on_ground = _ground_error(snap, pts, exact, result)
     assert err[on_ground & (exact < 0.99)].mean() < 0.01
+
+
+def test_search_map_reduction_of_blocks_past_the_loop_limit_finds_their_last_texel():
+    """pvsm_search_size 16 from a 4096² map reduces 256² texels into each: one reduce.comp pass ran
+    65792 loop iterations per texel, past llvmpipe's limit (65535), and missed its block's last row. In
+    steps of REDUCE_STEP² the minimum of a 512² block is found wherever it lies (here: its last texel)."""
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    from penumbra.tests.test_spsm import _snapshot
+    src = np.ones((512, 512), np.float32)
+    src[511, 511] = 0.25                                # the block's minimum, in its last row
+    src[0, 3] = 0.5
+
+    def job(worker, _job):
+        frame = Frame(worker, _snapshot(np.zeros((1, 3, 3))), RenderSettings())
+        try:
+            tex = frame.texture((512, 512), 1)
+            tex.write(src.tobytes())
+            out = pvsm.Pvsm._reduce(frame, tex, (512, 512), 512)
+            return frame.read(out)[..., 0].copy()
+        finally:
+            frame.release()
+    assert GpuWorker.get().run(job).ravel().tolist() == [0.25]
+
+
+@pytest.fixture(scope="module")
+def big_light():
+    """stress big_light: a light 10× the occluder, wide kernels (the penumbra spans most of the map)."""
+    from penumbra.engine.measure import stress
+    snap = replace(stress.plane_scene(light_size=10.0, name="big_light"), camera=stress.camera(size=24))
+    return snap, stress.oracle(snap)["V"]
+
+
+@pytest.mark.parametrize("options", [{"pvsm_cap": 64, "pvsm_cell_samples": 8}, {"pvsm_cap": 256}],
+                         ids=["cap64-sub8", "cap256"])
+def test_kernels_with_more_depth_tests_than_the_loop_limit_are_filtered_whole(big_light, options):
+    """(cap + 2)² cells × cell_samples² tests per pixel: 278k and 66.6k, past llvmpipe's loop limit (65535
+    iterations per invocation, all loops together). In one loop nest the filter stopped part-way: mae_shadow
+    0.062 and 0.077 on big_light (cap 24: 0.0099, with 8 cell samples 0.0057). Split over dispatches they
+    are as accurate as the kernels under the limit."""
+    snap, truth = big_light
+    r = pipeline.render(snap, RenderSettings(technique="PVSM", shadow_map_size=512, collect_stats=True)
+                        .with_(**options))
+    err = np.abs(r.passes["Visibility"][..., 0] - truth)[truth < 0.999]
+    assert r.stats["per_light"][0]["filter_dispatches"] > 1
+    assert err.mean() < 0.012, err.mean()
+
+
+@pytest.mark.parametrize("mode", ["FIXED", "ADAPTIVE"])
+def test_filter_split_over_dispatches_equals_one_dispatch(big_light, monkeypatch, mode):
+    """The split filter (visibility.comp CHUNKED) carries each pixel's sums from dispatch to dispatch (one
+    map), or adds each share to the tiles' merge buffer: with shares of 37 depth tests the image is the
+    one-dispatch image but for the sums' rounding."""
+    from penumbra.engine.gpu import loops
+    snap, _ = big_light
+    s = RenderSettings(technique="PVSM", shadow_map_size=256, collect_stats=True).with_(
+        pvsm_mode=mode, pvsm_cell_samples=2)
+    whole = pipeline.render(snap, s)
+    monkeypatch.setattr(loops, "CHUNK", 37)
+    split = pipeline.render(snap, s)
+    assert whole.stats["per_light"][0]["filter_dispatches"] == 1
+    assert split.stats["per_light"][0]["filter_dispatches"] > 10
+    a, b = whole.passes["Visibility"][..., 0], split.passes["Visibility"][..., 0]
+    assert (a < 0.9).sum() > 30 and np.abs(a - b).max() < 1e-5
+
+
+def test_search_box_past_the_loop_limit_is_cut_with_a_warning(big_light):
+    """pvsm_search_radius 1 over a 4096² search map under a big light: at the coarsest search level the box
+    spans 512² cells, past llvmpipe's loop limit; the search stopped part-way (big_light mae_shadow 0.048,
+    errors of 1). It is cut to PVSM_SEARCH_CELLS per axis around the receiver, with a warning naming the
+    settings: as accurate as radius 0.15, which needs no cut (0.0128)."""
+    snap, truth = big_light
+    s = RenderSettings(technique="PVSM", shadow_map_size=4096).with_(pvsm_search_size=4096)
+    wide = pipeline.render(snap, s.with_(pvsm_search_radius=1.0))
+    narrow = pipeline.render(snap, s.with_(pvsm_search_radius=0.15))
+    assert any("pvsm_search_radius" in w for w in wide.warnings) and not narrow.warnings
+    err = np.abs(wide.passes["Visibility"][..., 0] - truth)
+    assert err[truth < 0.999].mean() < 0.02 and np.nanmax(err) < 0.2, (err[truth < 0.999].mean(), np.nanmax(err))

@@ -31,6 +31,11 @@ SIDE_ALL, SIDE_OUTSIDE, SIDE_INSIDE = 0, 1, 2
 # SSM compute scatter: fixed-point units per 1.0 of hidden light (2^24: ≤ 256 full occlusions fit a u32).
 FIXED_POINT = float(1 << 24)
 
+# PVSM's blocker search: most cells per axis of its search loop (a wider box is cut): 160² and a filter share
+# (engine/gpu/loops.CHUNK) stay below llvmpipe's
+# loop limit whatever pvsm_cap is.
+PVSM_SEARCH_CELLS = 160
+
 DEFINES = {name: value for name, value in dict(globals()).items()
            if name.isupper() and isinstance(value, (int, float)) and not isinstance(value, bool)}
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..gpu.frame import resource_bytes
+from ..gpu.loops import chunk_count, chunk_uniforms
 from ..gpu.programs import bind_samplers, program, set_uniforms
 from ..gpu.state import gl_state
 from . import structure
@@ -48,6 +49,13 @@ def _zero(frame, view):
     return frame.texture((view.width, view.height), 2)     # zero-filled
 
 
+def rect_texels(rows) -> np.ndarray:
+    """Texel centres inside each patch's rectangle (rows[:, 0:4]), as scatter.comp picks them."""
+    lo, hi = np.ceil(rows[:, 0:2] - 0.5), np.ceil(rows[:, 2:4] - 0.5)
+    n = np.maximum(hi - lo, 0).astype(np.int64)
+    return n[:, 0] * n[:, 1]
+
+
 def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
     """Sum every micro-patch's hidden light fraction into an RG soft shadow map (r: nearest receiver,
     g: farthest). §3.4 on the GPU; precision and batching per appendix A."""
@@ -67,8 +75,13 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
         prog = program(frame.worker, compute="ssm/scatter.comp", defines=defines)
         bind_samplers(prog, {"u_receivers": receivers})
         set_uniforms(prog, {**uniforms, "u_count": m})
-        prog.run((m + 63) // 64, 1, 1)
-        ctx.memory_barrier()
+        chunks = chunk_count(rect_texels(rows).max())
+        for k in range(chunks):             # each dispatch a share of every patch's texels (atomics add up)
+            frame.progress.check()
+            set_uniforms(prog, chunk_uniforms(k, chunks))
+            prog.run((m + 63) // 64, 1, 1)
+            ctx.memory_barrier()
+        frame.count(ssm_scatter_dispatches=chunks)
         ssm = frame.texture(size, 2)
         ssm.bind_to_image(3, read=False, write=True)
         resolve = program(frame.worker, compute="ssm/resolve.comp", defines=defines)

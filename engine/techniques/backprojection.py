@@ -34,6 +34,7 @@ from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UN
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
                                      REFINE_MSSM, REFINE_NONE, REFINE_YSM)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
+from ..gpu import loops
 from ..structures import need
 from ..structures.hsm import HSM
 from ..structures.microrects import MICRORECTS
@@ -73,7 +74,7 @@ BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK
 REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
 LOQ_DEPTH_JUMP = 0.05           # relative camera-depth jump at which the LOQ smoothing stops (a discontinuity)
 
-# Mesa's llvmpipe ends a shader's loops once they have run 65535 iterations in all (LP_MAX_TGSI_LOOP_ITERATIONS,
+# Mesa's llvmpipe ends a shader's loops once they have run 65535 iterations in all (engine/gpu/loops.py,
 # shared by every loop of an invocation): a gather over more micro-occluders stopped part-way, and every loop
 # after it ran once (the bitmask count saw one row: black). That was b = ∞ on big_light (~573k per pixel). One
 # dispatch gathers at most CHUNK_CELLS per pixel; a SIMD group may run two gathers' shares back to back
@@ -334,7 +335,7 @@ class Backprojection(Technique):
                              else float(o["bp_budget_low"]) if budget_mode == BUDGET_IMPORTANCE else 0.0)
             worst = gather_cells_bound((w, h), len(maps), int(primitive == PRIMITIVE_MICROQUAD), budget_mode,
                                        force, budget_max, blend, levels)
-            chunks = 1 if light.is_delta else -(-worst // CHUNK_CELLS)
+            chunks = 1 if light.is_delta else loops.chunk_count(worst, CHUNK_CELLS)
             if chunks == 1:
                 frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
                                defines=defines)

@@ -40,11 +40,15 @@ from dataclasses import replace
 
 from ..core import lightview
 from ..core.matrices import mat_uniform
+from ..core.shader_constants import PVSM_SEARCH_CELLS
 from ..core.snapshot import SUN
 from .. import structures
+from ..gpu import loops
 from ..structures.conservative_map import CONSERVATIVE_MAP
 from .backprojection import is_round, level_count
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
+
+REDUCE_STEP = 16                # block side of one reduction pass (engine/gpu/loops.py: the loop limit)
 
 # The map the blocker search reads, min-reduced to pvsm_search_size. The paper's is conservative (§5.2 step 2);
 # CONSERVATIVE_MAP here renders one at pvsm_search_size, but measured at 128², 1024² map against Cycles it is
@@ -234,6 +238,12 @@ class Pvsm(Technique):
         # The low-resolution search map: min-reduced to about pvsm_search_size, and three levels that halve it
         # for search boxes wider than the cap (a light near its occluders).
         fine_block = max(1, 1 << max(0, int(math.ceil(math.log2(max(search_size) / int(o["pvsm_search_size"]))))))
+        # visibility.comp cuts a search box wider than PVSM_SEARCH_CELLS cells of its coarsest level (8 fine
+        # blocks), keeping the search loop under llvmpipe's loop limit (engine/gpu/loops.py).
+        reach = float(o["pvsm_search_radius"]) + (0.5 if o["pvsm_antialiasing"] else 0.0)   # AA: ≤ ½ map
+        if min(2.0 * reach, 1.0) * max(search_size) > PVSM_SEARCH_CELLS * 8 * fine_block:
+            frame.warn(f"PVSM: light '{light.name}': blocker search held to {PVSM_SEARCH_CELLS} cells per axis "
+                       f"of its coarsest level (pvsm_search_radius × pvsm_search_size too large for the loop limit)")
         with frame.timings.stage("pvsm_search_map"):
             levels = [self._reduce(frame, search, search_size, fine_block)]
             for _ in range(3):
@@ -270,9 +280,8 @@ class Pvsm(Technique):
             self._adaptive(frame, lc, out, uniforms, samplers, defines, info, o)
         else:
             with frame.timings.stage("pvsm_filter"):
-                frame.dispatch("pvsm/visibility.comp", uniforms,
-                               samplers={**samplers, "u_depth_map": lc.structures[FILTER_MAP]},
-                               images=images, defines=defines)
+                self._filter(frame, lc, uniforms, {**samplers, "u_depth_map": lc.structures[FILTER_MAP]}, images,
+                             defines, o)
         if info is not None:
             self._gather(frame, lc, info)
 
@@ -316,12 +325,11 @@ class Pvsm(Technique):
                     float(tw) if i1 < cells_x else UNBOUNDED, float(th) if j1 < cells_y else UNBOUNDED)
             vw, vh = cells_x * scale, cells_y * scale
             with t.stage("pvsm_filter"):
-                frame.dispatch("pvsm/visibility.comp",
-                               {**uniforms, **tile_lc.uniforms, "u_clip": clip, "u_virtual_lo": (-ox, -oy),
-                                "u_virtual_hi": (vw - ox, vh - oy), "u_area_scale": 4.0 ** -k,
-                                "u_filter_levels": level_count(int(vw), int(vh))},
-                               samplers={"u_kernel": kernel, "u_depth_map": depth}, images={0: merge},
-                               defines={**defines, "MODE": 2})
+                self._filter(frame, lc,
+                             {**uniforms, **tile_lc.uniforms, "u_clip": clip, "u_virtual_lo": (-ox, -oy),
+                              "u_virtual_hi": (vw - ox, vh - oy), "u_area_scale": 4.0 ** -k,
+                              "u_filter_levels": level_count(int(vw), int(vh))},
+                             {"u_kernel": kernel, "u_depth_map": depth}, {0: merge}, {**defines, "MODE": 2}, o)
         with t.stage("pvsm_filter"):
             images = {0: out, **({1: info} if info is not None else {})}
             frame.dispatch("pvsm/visibility.comp", uniforms, samplers={"u_kernel": kernel, "u_merge": merge},
@@ -331,13 +339,36 @@ class Pvsm(Technique):
                          "tile_levels": sorted({k for *_, k in tiles})})
 
     @staticmethod
+    def _filter(frame, lc, uniforms, samplers, images, defines, o):
+        """The filtering pass (MODE 0, or one tile's MODE 2), split over dispatches when a kernel can visit
+        more depth tests than llvmpipe runs loop iterations (engine/gpu/loops.py): at most (cap + 2)² cells
+        (cap_level), u_sub² tests each past level 0."""
+        worst = (int(o["pvsm_cap"]) + 2) ** 2 * int(o["pvsm_cell_samples"]) ** 2
+        chunks = loops.chunk_count(worst, loops.CHUNK)
+        lc.stats["filter_dispatches"] = max(lc.stats.get("filter_dispatches", 0), chunks)
+        if chunks == 1:
+            frame.dispatch("pvsm/visibility.comp", uniforms, samplers=samplers, images=images, defines=defines)
+            return
+        if defines.get("MODE", 0) == 0:
+            images = {**images, 3: frame.texture((frame.width, frame.height), 4)}
+        for k in range(chunks):
+            frame.progress.check()
+            frame.dispatch("pvsm/visibility.comp", {**uniforms, **loops.chunk_uniforms(k, chunks, loops.CHUNK)},
+                           samplers=samplers, images=images, defines={**defines, "CHUNKED": 1})
+
+    @staticmethod
     def _reduce(frame, src, size, block):
-        """A map `block` times coarser, each texel the minimum depth of its block (glsl/pvsm/reduce.comp)."""
-        out_size = (-(-size[0] // block), -(-size[1] // block))
-        out = frame.texture(out_size, 1)
-        frame.dispatch("pvsm/reduce.comp", {"u_src_size": tuple(size), "u_block": int(block)},
-                       samplers={"u_src": src}, images={0: out}, size=out_size)
-        return out
+        """A map `block` times coarser, each texel the minimum depth of its block (glsl/pvsm/reduce.comp), in
+        steps of at most REDUCE_STEP² texels (a 4096² map to a 16² search map, 256² per texel in one step, passes
+        llvmpipe's loop limit; a min of mins is the same min)."""
+        while block > 1:
+            step = min(block, REDUCE_STEP)
+            out_size = (-(-size[0] // step), -(-size[1] // step))
+            out = frame.texture(out_size, 1)
+            frame.dispatch("pvsm/reduce.comp", {"u_src_size": tuple(size), "u_block": int(step)},
+                           samplers={"u_src": src}, images={0: out}, size=out_size)
+            src, size, block = out, out_size, -(-block // step)
+        return src
 
     def _gather(self, frame, lc, info):
         a = frame.read(info)

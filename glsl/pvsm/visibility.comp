@@ -20,6 +20,20 @@
 #ifndef MODE
 #define MODE 0
 #endif
+// 1: kernel_sums runs a share of its cells per dispatch (llvmpipe ends an invocation's loops after 65535
+// iterations in all; engine/gpu/loops.py). MODE 0 keeps its running sums in u_partial; MODE 2 adds each
+// share to the merge buffer, which is a sum anyway.
+#ifndef CHUNKED
+#define CHUNKED 0
+#endif
+#if CHUNKED
+uniform int u_chunk;
+uniform int u_chunks;
+uniform int u_chunk_size;
+#if MODE == 0
+layout(rgba32f, binding = 3) uniform image2D u_partial;         // occluded weight, total weight, cells
+#endif
+#endif
 
 // The "low-resolution map" of §4 step 3 and three coarser ones, each halving (glsl/pvsm/reduce.comp): every
 // cell the minimum depth of the search-map texels it covers.
@@ -122,11 +136,17 @@ vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
     e += pad;
     // The finest level whose cells the box spans at most u_cap times (the coarsest one past that).
     int l = 0;
-    while (l < 3 && 2.0 * max(e.x, e.y) > float(u_cap * (u_fine_block << l))) ++l;
+    int cap = min(u_cap, PVSM_SEARCH_CELLS - 2);
+    while (l < 3 && 2.0 * max(e.x, e.y) > float(cap * (u_fine_block << l))) ++l;
     float s = float(u_fine_block << l);
     ivec2 cells = search_cells(l);
     ivec2 i0 = max(ivec2(floor((c - e) / s)), ivec2(0));
     ivec2 i1 = min(ivec2(floor((c + e) / s)), cells - 1);
+    // The loop limit (engine/gpu/loops.py): a box wider than PVSM_SEARCH_CELLS cells of the coarsest level
+    // is cut to that many around c, as far as the map allows (pvsm.py warns where it can happen).
+    ivec2 ci = ivec2(floor(c / s));
+    i0 = max(i0, min(ci - PVSM_SEARCH_CELLS / 2, i1 - PVSM_SEARCH_CELLS + 1));
+    i1 = min(i1, i0 + PVSM_SEARCH_CELLS - 1);
     float sum = 0.0, weight = 0.0;
     for (int j = i0.y; j <= i1.y; ++j) {
         for (int i = i0.x; i <= i1.x; ++i) {
@@ -254,64 +274,83 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
     float zr = max(g_r.map.z, 1e-30);
     vec2 foot = g_r.local.xy;
 #endif
-    float occ = 0.0, total = 0.0;
-    for (int i = i0; i <= i1; ++i) {
-        float xa = max(float(i) * s, cx0), xb = min(float(i + 1) * s, cx1);
-        float wx = xb - xa;
-        if (!(wx > 0.0)) continue;
-        float yc = c.y + slope * (0.5 * (xa + xb) - c.x);
-        float ya = max(yc - hy, u_clip.y), yb = min(yc + hy, u_clip.w);
-        if (!(yb > ya)) continue;
-        int j0 = int(floor(ya / s)), j1 = int(floor(yb / s));
-        for (int j = j0; j <= j1; ++j) {
+    // One flat loop over (column, row, sub-sample): a column's cells are at most `rows`, a cell has
+    // u_sub² depth tests past level 0; with CHUNKED only this dispatch's share of that numbering.
+    int sub = l > 0 ? u_sub : 1;
+    int per_cell = sub * sub;
+    int rows = int(floor(2.0 * hy / s)) + 2;      // a column's [ya, yb] is at most 2·hy long
+    int n = (i1 - i0 + 1) * rows * per_cell;
+#if CHUNKED
+    int k0 = min(u_chunk * u_chunk_size, n), k1 = min(k0 + u_chunk_size, n);
+#else
+    int k0 = 0, k1 = n;
+#endif
+    int q = k0 % per_cell, cell = k0 / per_cell;
+    int col = cell / rows, row = cell - col * rows;
+    float occ = 0.0, total = 0.0, w = 0.0, hidden = 0.0;
+    int i = i0, j = 0;
+    bool inside = false;
+    for (int k = k0; k < k1; ++k) {
+        if (q == 0 || k == k0) {
+            // A new cell: column i0 + col, row `row` of the column's cells.
+            i = i0 + col;
+            hidden = 0.0;
+            float xa = max(float(i) * s, cx0), xb = min(float(i + 1) * s, cx1);
+            float wx = xb - xa;
+            float yc = c.y + slope * (0.5 * (xa + xb) - c.x);
+            float ya = max(yc - hy, u_clip.y), yb = min(yc + hy, u_clip.w);
+            j = int(floor(ya / s)) + row;
             float wy = min(float(j + 1) * s, yb) - max(float(j) * s, ya);
-            if (!(wy > 0.0)) continue;
-            float w = wx * wy;
+            inside = wx > 0.0 && yb > ya && j <= int(floor(yb / s)) && wy > 0.0;
+            w = wx * wy;
 #if WEIGHTED
-            if (u_light_ortho == 0) {
+            if (inside && u_light_ortho == 0) {
                 vec4 r = (vec4(xa, max(float(j) * s, ya), xb, min(float(j + 1) * s, yb)) - c.xyxy) * to_light.xyxy;
                 // Midpoint rule: the cell's area times the irradiance density at its centre, cosθ_r·cosθ_l/d²
                 // for a receiver facing the light = 1/(1 + |q|²)² with q its offset in units of the height.
                 // Against the exact parallel-rectangle form factor (as SSM's ssm/patch.glsl integrates it)
                 // it gave the same mae_shadow on plane and suzanne at 0.7× the filter's time.
-                vec2 q = (0.5 * (r.xy + r.zw) - foot) / zr;
-                float k = 1.0 / (1.0 + dot(q, q));
-                w *= k * k;
+                vec2 qc = (0.5 * (r.xy + r.zw) - foot) / zr;
+                float kw = 1.0 / (1.0 + dot(qc, qc));
+                w *= kw * kw;
             }
 #endif
-            total += w;
-            ++g_visited;
+            if (inside && q == 0) {
+                total += w;
+                ++g_visited;
+            }
+        }
+        if (inside) {
             // A cell of level l is the level-0 texels at the centres of its u_sub × u_sub sub-cells (one: the
             // texel at its centre, as a map rendered 2^l times coarser would sample it), each tested on its
             // own: one point per cell aliases geometry finer than the cell (a grid of thin bars beats with the
             // level's sampling into a moiré). Past the map's edge: lit when every caster lies inside the map,
             // else the edge texel continued outwards (compared where it lies, so a surface never shadows
             // itself). A tile reads the cells its rectangle cuts at its own border texels.
-            int sub = l > 0 ? u_sub : 1;
-            float hidden = 0.0;
-            for (int b = 0; b < sub; ++b) {
-                for (int a = 0; a < sub; ++a) {
-                    vec2 tc = (vec2(i, j) + (vec2(a, b) + 0.5) / float(sub)) * s;
-                    if (any(lessThan(tc, u_virtual_lo)) || any(greaterThanEqual(tc, u_virtual_hi))) {
-                        if (u_outside_lit == 1) continue;
-                        tc = clamp(tc, u_virtual_lo + 0.5, u_virtual_hi - 0.5);
-                    }
-                    ivec2 t = clamp(ivec2(floor(tc)), ivec2(0), u_map_size - 1);
-                    // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid
-                    // (c ± α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and
-                    // that lies close to the receiver (α(z) under a quarter of the kernel's) cannot hide the
-                    // light: it is the receiver's own curved surface, nearer than its tangent plane far out in
-                    // a wide kernel. Deeper occluders of a fused umbra keep counting (their light points are
-                    // covered by the z-average's plane, the model of Eq. 1).
-                    float z = texelFetch(u_depth_map, t, 0).r;
-                    vec2 own = filter_half_texels(z, g_depth);
-                    bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
-                        && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
-                    if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
-                        hidden += 1.0;
-                }
+            int a = q % sub, b = q / sub;
+            vec2 tc = (vec2(i, j) + (vec2(a, b) + 0.5) / float(sub)) * s;
+            bool outside = any(lessThan(tc, u_virtual_lo)) || any(greaterThanEqual(tc, u_virtual_hi));
+            if (!(outside && u_outside_lit == 1)) {
+                if (outside) tc = clamp(tc, u_virtual_lo + 0.5, u_virtual_hi - 0.5);
+                ivec2 t = clamp(ivec2(floor(tc)), ivec2(0), u_map_size - 1);
+                // Eq. 2's occluding function, and one test more: a texel whose own light–receiver pyramid
+                // (c ± α(z)·h, widened by the pixel footprint and the cell) misses the kernel's centre and
+                // that lies close to the receiver (α(z) under a quarter of the kernel's) cannot hide the
+                // light: it is the receiver's own curved surface, nearer than its tangent plane far out in
+                // a wide kernel. Deeper occluders of a fused umbra keep counting (their light points are
+                // covered by the z-average's plane, the model of Eq. 1).
+                float z = texelFetch(u_depth_map, t, 0).r;
+                vec2 own = filter_half_texels(z, g_depth);
+                bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
+                    && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
+                if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
+                    hidden += 1.0;
             }
-            occ += w * hidden / float(sub * sub);
+            if (q == per_cell - 1 || k == k1 - 1) occ += w * hidden / float(per_cell);
+        }
+        if (++q == per_cell) {
+            q = 0;
+            if (++row == rows) { row = 0; ++col; }
         }
     }
     return vec2(occ, total);
@@ -429,7 +468,17 @@ void main() {
 #else
             float n_screen;
             int l = filter_level(phi, h, n_screen);
+            int searched = g_visited;
             vec2 sums = kernel_sums(g_r.map.xy, h, l);
+#if CHUNKED && MODE == 0
+            vec4 part = (u_chunk > 0 ? imageLoad(u_partial, px) : vec4(0.0)) + vec4(sums, g_visited - searched, 0.0);
+            if (u_chunk < u_chunks - 1) {
+                imageStore(u_partial, px, part);
+                return;
+            }
+            sums = part.xy;
+            g_visited = searched + int(part.z);
+#endif
 #if MODE == 2
             if (g_visited > 0) {
                 vec4 m = imageLoad(u_merge, px);
