@@ -121,8 +121,11 @@ _HEADER_BYTES = 16          # patches.comp's Scratch header: count, pad, work (d
 
 
 def _quantised(nbytes: int) -> int:
-    """A power of two ≥ nbytes (≥ 256): pooled buffers are reused while the patch count varies a little."""
-    return 1 << max(8, (int(nbytes) - 1).bit_length())
+    """nbytes rounded up to a multiple of 1/8 of its power of two (and of 256 bytes): pooled buffers, keyed
+    by their exact size, are reused while the patch count varies a little, for at most 1/8 more memory
+    above 4 KiB."""
+    step = 1 << max(8, (int(nbytes) - 1).bit_length() - 4)
+    return -(-int(nbytes) // step) * step
 
 
 @dataclass
