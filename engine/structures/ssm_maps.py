@@ -115,8 +115,9 @@ def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_
 
 
 PATCH_ROW_BYTES = 32        # one row of patch_list: 8 float32 (glsl/ssm/patches.comp's Patch)
-_PATCH_GROUP = 256          # texels per work group of patches.comp (its GROUP)
-_GROUP_BYTES = 16           # patches.comp's Group: count, offset, work (double)
+_PATCH_RUN = 32             # texels per invocation of patches.comp (its RUN)
+_PATCH_THREADS = 64         # its work group size (THREADS) outside PASS 2
+_RUN_BYTES = 16             # patches.comp's Run: count, offset, work (double)
 _HEADER_BYTES = 16          # patches.comp's Scratch header: count, pad, work (double)
 
 
@@ -154,7 +155,7 @@ class _PatchCounts:
     uniforms: dict
     occluders: list             # occluder-map textures
     far: object                 # buffer: zr_max (float bits)
-    scratch: list               # per occluder map: header and group counts/offsets/work
+    scratch: list               # per occluder map: header and run counts/offsets/work
     counts: list
     works: list
 
@@ -166,19 +167,20 @@ class _PatchCounts:
 def _count_patches(frame, view: LightView, half, occluders: list, far_map, bias: float) -> _PatchCounts:
     """Patch count and work of each occluder map, computed on the GPU; 16 bytes per map come back."""
     size = (view.width, view.height)
-    groups = -(-view.width * view.height // _PATCH_GROUP)
+    runs = -(-view.width * view.height // _PATCH_RUN)
+    grid = (-(-runs // _PATCH_THREADS), 1, 1)
     far = frame.reserved_buffer(_quantised(4))
     far.write(np.zeros(1, np.uint32).tobytes())           # atomicMax from 0: no receiver yet
-    frame.dispatch("ssm/patches.comp", samplers={"u_map": far_map}, buffers={1: far}, defines={"PASS": 0},
-                   size=size, groups=(groups, 1, 1))
-    uniforms = {"u_groups": groups, "u_half": tuple(half), "u_texel": view.texel_size(), "u_bias": float(bias),
+    uniforms = {"u_runs": runs, "u_half": tuple(half), "u_texel": view.texel_size(), "u_bias": float(bias),
                 "u_ortho": int(view.is_ortho)}
+    frame.dispatch("ssm/patches.comp", uniforms, samplers={"u_map": far_map}, buffers={1: far},
+                   defines={"PASS": 0}, size=size, groups=grid)
     scratch = []
     for occ in occluders:
-        buf = frame.reserved_buffer(_quantised(_HEADER_BYTES + _GROUP_BYTES * groups))
-        for pass_, grid in ((1, (groups, 1, 1)), (2, (1, 1, 1))):
+        buf = frame.reserved_buffer(_quantised(_HEADER_BYTES + _RUN_BYTES * runs))
+        for pass_, groups in ((1, grid), (2, (1, 1, 1))):
             frame.dispatch("ssm/patches.comp", uniforms, samplers={"u_map": occ}, buffers={0: buf, 1: far},
-                           defines={"PASS": pass_}, size=size, groups=grid)
+                           defines={"PASS": pass_}, size=size, groups=groups)
         scratch.append(buf)
     counts, works = [], []
     for buf in scratch:
@@ -191,7 +193,7 @@ def _count_patches(frame, view: LightView, half, occluders: list, far_map, bias:
 def _write_patches(frame, counted: _PatchCounts) -> list[PatchList]:
     """patches.comp's pass 3: the rows of every occluder map into a buffer of the frame's pool."""
     view = counted.view
-    groups = counted.uniforms["u_groups"]
+    grid = (-(-counted.uniforms["u_runs"] // _PATCH_THREADS), 1, 1)
     out = []
     for occ, buf, count, work in zip(counted.occluders, counted.scratch, counted.counts, counted.works):
         if not count:
@@ -200,7 +202,7 @@ def _write_patches(frame, counted: _PatchCounts) -> list[PatchList]:
         rows = frame.reserved_buffer(_quantised(count * PATCH_ROW_BYTES))
         frame.dispatch("ssm/patches.comp", counted.uniforms, samplers={"u_map": occ},
                        buffers={0: buf, 1: counted.far, 2: rows}, defines={"PASS": 3},
-                       size=(view.width, view.height), groups=(groups, 1, 1))
+                       size=(view.width, view.height), groups=grid)
         out.append(PatchList(rows, count, work))
     counted.give_back(frame)        # GL keeps command order: pass 3 still reads them
     return out
