@@ -38,35 +38,38 @@ def build(frame, lc, precision: str, method: str, weighted: bool):
         return None
     frame.progress.check()
     with frame.timings.stage("ssm_scatter"):
-        ssms = [scatter(frame, maps, rows, precision, method, weighted) if len(rows) else None
-                for rows in maps.patches]
+        ssms = [scatter(frame, maps, patches, precision, method, weighted) if patches.count else None
+                for patches in maps.patches]
     front = ssms[0] if ssms[0] is not None else _zero(frame, maps.view)
     back = ssms[1] if len(ssms) > 1 and ssms[1] is not None else None
     return SoftShadowMap(front, back)
+
+
+def _vertexless(frame, prog):
+    """The attribute-less vertex array of `prog` (its vertex shader builds corners from gl_VertexID), made
+    once per program and kept with it on the worker, so a redraw allocates none."""
+    key = f"__vertexless_vao__{prog.glo}"
+    vao = frame.worker.cache.get(key)
+    if vao is None:
+        vao = frame.worker.cache[key] = frame.ctx.vertex_array(prog, [])
+    return vao
 
 
 def _zero(frame, view):
     return frame.texture((view.width, view.height), 2)     # zero-filled
 
 
-def rect_texels(rows) -> np.ndarray:
-    """Texel centres inside each patch's rectangle (rows[:, 0:4]), as scatter.comp picks them."""
-    lo, hi = np.ceil(rows[:, 0:2] - 0.5), np.ceil(rows[:, 2:4] - 0.5)
-    n = np.maximum(hi - lo, 0).astype(np.int64)
-    return n[:, 0] * n[:, 1]
-
-
-def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
-    """Sum every micro-patch's hidden light fraction into an RG soft shadow map (r: nearest receiver,
-    g: farthest). §3.4 on the GPU; precision and batching per appendix A."""
+def scatter(frame, maps, patches, precision: str, method: str, weighted: bool):
+    """Sum the hidden light fraction of every micro-patch in `patches` (a PatchList, built on the GPU) into
+    an RG soft shadow map (r: nearest receiver, g: farthest). §3.4 on the GPU; precision and batching per
+    appendix A. The instance count and the batches come from the count the patch list read back."""
     ctx, view = frame.ctx, maps.view
     size = (view.width, view.height)
     defines = {"SSM_WEIGHTED": int(weighted)}
     uniforms = {"u_light_window_ssm": view.window, "u_ssm_size": size, "u_half": maps.half,
                 "u_ortho": int(view.is_ortho), "u_bias_texels": maps.bias}
-    patches = frame.buffer(np.ascontiguousarray(rows, np.float32).tobytes())
-    patches.bind_to_storage_buffer(0)
-    m = len(rows)
+    patches.buffer.bind_to_storage_buffer(0)
+    m = patches.count
     receivers = maps.maps["receivers"]
     if method == "COMPUTE":
         for binding in (1, 2):
@@ -75,7 +78,8 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
         prog = program(frame.worker, compute="ssm/scatter.comp", defines=defines)
         bind_samplers(prog, {"u_receivers": receivers})
         set_uniforms(prog, {**uniforms, "u_count": m})
-        chunks = chunk_count(rect_texels(rows).max())
+        # the patch rows stay on the GPU: a rectangle holds at most the whole map's texels
+        chunks = chunk_count(size[0] * size[1])
         for k in range(chunks):             # each dispatch a share of every patch's texels (atomics add up)
             frame.progress.check()
             set_uniforms(prog, chunk_uniforms(k, chunks))
@@ -94,7 +98,7 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
     prog = program(frame.worker, "ssm/scatter.vert", "ssm/scatter.frag", defines=defines)
     bind_samplers(prog, {"u_receivers": receivers})
     set_uniforms(prog, uniforms)
-    vao = frame.own(ctx.vertex_array(prog, []))
+    vao = _vertexless(frame, prog)
     ssm = frame.texture(size, 2, dtype)
     fbo = frame.framebuffer([ssm])
     fbo.clear(0.0, 0.0, 0.0, 0.0)
@@ -110,7 +114,7 @@ def scatter(frame, maps, rows, precision: str, method: str, weighted: bool):
             batch = frame.texture(size, 2, "f2")
             batch_fbo = frame.framebuffer([batch])
             add = program(frame.worker, "ssm/fullscreen.vert", "ssm/add.frag")
-            add_vao = frame.own(ctx.vertex_array(add, []))
+            add_vao = _vertexless(frame, add)
             edges = np.linspace(0, m, batches + 1).round().astype(int)
             for first, last in zip(edges[:-1], edges[1:]):
                 if last <= first:

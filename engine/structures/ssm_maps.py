@@ -1,8 +1,10 @@
 """Soft Shadow Maps' per-light maps (Atty et al. 2006, §3.1–3.3, §3.5): occluder maps of the casters (front-most;
 farthest back faces for the two-pass method) and receiver maps (nearest; farthest receiver) from the light
 centre, with texels of the light's aspect ratio, each texel tagged with its object index; and the micro-patch
-list with each patch's penumbra extent (§3.3, on the CPU as in the paper). The occluder-map resolution is
-lowered until the scatter's estimated work fits the budget, so maps and patch list are one structure.
+list with each patch's penumbra extent (§3.3). The paper builds the list on the CPU; here glsl/ssm/patches.comp
+builds it on the GPU, row for row what `patch_list` (the numpy reference) gives, and only the patch count and
+the work estimate come back. The occluder-map resolution is lowered until the scatter's estimated work fits
+the budget, so maps and patch list are one structure.
 
 Also here: the object-role split (Object → Penumbra → Shadow Role) and the camera-view receiver mask that
 SSM's projection reads (`receiver_mask`, its own structure)."""
@@ -78,7 +80,8 @@ def ssm_view(view: LightView, half, size: int) -> LightView:
 
 
 def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_texels: float):
-    """Micro-patches of an occluder map and their penumbra extents (§3.3).
+    """Micro-patches of an occluder map and their penumbra extents (§3.3): the reference that
+    glsl/ssm/patches.comp reproduces on the GPU (the renderer uses that one; tests compare the two).
 
     The extent of a patch [lo, hi] at depth zo on the plane of a receiver at depth zr is
     [lo − h·s, hi + h·s] with s = penumbra_spread(zo, zr) — the section of the patch's penumbra pyramid,
@@ -109,6 +112,110 @@ def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_
     rows[:, 0:4] = rect[keep]
     rows[:, 4], rows[:, 5], rows[:, 6], rows[:, 7] = i[keep], j[keep], zo[keep], obj[keep]
     return rows, float(area[keep].sum())
+
+
+PATCH_ROW_BYTES = 32        # one row of patch_list: 8 float32 (glsl/ssm/patches.comp's Patch)
+_PATCH_RUN = 32             # texels per invocation of patches.comp (its RUN)
+_PATCH_THREADS = 64         # its work group size (THREADS) outside PASS 2
+_RUN_BYTES = 16             # patches.comp's Run: count, offset, work (double)
+_HEADER_BYTES = 16          # patches.comp's Scratch header: count, pad, work (double)
+
+
+def _quantised(nbytes: int) -> int:
+    """nbytes rounded up to a multiple of 1/8 of its power of two (and of 256 bytes): pooled buffers, keyed
+    by their exact size, are reused while the patch count varies a little, for at most 1/8 more memory
+    above 4 KiB."""
+    step = 1 << max(8, (int(nbytes) - 1).bit_length() - 4)
+    return -(-int(nbytes) // step) * step
+
+
+@dataclass
+class PatchList:
+    """One occluder map's micro-patches on the GPU: the first `count` rows of `buffer` (None when there are
+    none), in patch_list's layout and order; `work`: the estimated scatter texel updates."""
+    buffer: object | None
+    count: int
+    work: float
+
+    @property
+    def nbytes(self) -> int:
+        return resource_bytes(self.buffer)
+
+    def read(self) -> np.ndarray:
+        """The rows as patch_list returns them, (count, 8) float32 (tests compare the two)."""
+        if not self.count:
+            return np.zeros((0, 8), np.float32)
+        return np.frombuffer(self.buffer.read(self.count * PATCH_ROW_BYTES), np.float32).reshape(-1, 8).copy()
+
+
+@dataclass
+class _PatchCounts:
+    """patches.comp's passes 0–2 for the occluder maps of one light view, before the rows are written."""
+    view: LightView
+    uniforms: dict
+    occluders: list             # occluder-map textures
+    far: object                 # buffer: zr_max (float bits)
+    scratch: list               # per occluder map: header and run counts/offsets/work
+    counts: list
+    works: list
+
+    def give_back(self, frame) -> None:
+        for buf in (self.far, *self.scratch):
+            frame.give_back(buf)
+
+
+def _count_patches(frame, view: LightView, half, occluders: list, far_map, bias: float) -> _PatchCounts:
+    """Patch count and work of each occluder map, computed on the GPU; 16 bytes per map come back."""
+    size = (view.width, view.height)
+    runs = -(-view.width * view.height // _PATCH_RUN)
+    grid = (-(-runs // _PATCH_THREADS), 1, 1)
+    far = frame.reserved_buffer(_quantised(4))
+    far.write(np.zeros(1, np.uint32).tobytes())           # atomicMax from 0: no receiver yet
+    uniforms = {"u_runs": runs, "u_half": tuple(half), "u_texel": view.texel_size(), "u_bias": float(bias),
+                "u_ortho": int(view.is_ortho)}
+    frame.dispatch("ssm/patches.comp", uniforms, samplers={"u_map": far_map}, buffers={1: far},
+                   defines={"PASS": 0}, size=size, groups=grid)
+    scratch = []
+    for occ in occluders:
+        buf = frame.reserved_buffer(_quantised(_HEADER_BYTES + _RUN_BYTES * runs))
+        for pass_, groups in ((1, grid), (2, (1, 1, 1))):
+            frame.dispatch("ssm/patches.comp", uniforms, samplers={"u_map": occ}, buffers={0: buf, 1: far},
+                           defines={"PASS": pass_}, size=size, groups=groups)
+        scratch.append(buf)
+    counts, works = [], []
+    for buf in scratch:
+        raw = buf.read(_HEADER_BYTES)
+        counts.append(int(np.frombuffer(raw, np.uint32, 1)[0]))
+        works.append(float(np.frombuffer(raw, np.float64, 1, 8)[0]))
+    return _PatchCounts(view, uniforms, list(occluders), far, scratch, counts, works)
+
+
+def _write_patches(frame, counted: _PatchCounts) -> list[PatchList]:
+    """patches.comp's pass 3: the rows of every occluder map into a buffer of the frame's pool."""
+    view = counted.view
+    grid = (-(-counted.uniforms["u_runs"] // _PATCH_THREADS), 1, 1)
+    out = []
+    for occ, buf, count, work in zip(counted.occluders, counted.scratch, counted.counts, counted.works):
+        if not count:
+            out.append(PatchList(None, 0, work))
+            continue
+        rows = frame.reserved_buffer(_quantised(count * PATCH_ROW_BYTES))
+        frame.dispatch("ssm/patches.comp", counted.uniforms, samplers={"u_map": occ},
+                       buffers={0: buf, 1: counted.far, 2: rows}, defines={"PASS": 3},
+                       size=(view.width, view.height), groups=grid)
+        out.append(PatchList(rows, count, work))
+    counted.give_back(frame)        # GL keeps command order: pass 3 still reads them
+    return out
+
+
+def reference_patches(frame, maps: "SsmMaps") -> list:
+    """patch_list's (rows, work) for each occluder map of `maps`, computed on the CPU from the maps read
+    back: what `maps.patches` must equal (tests). zr_max is the farthest valid receiver depth."""
+    far = frame.read(maps.maps["far"])[..., 0]
+    valid = (far > 0.0) & (far < EMPTY_DEPTH)
+    zr_max = float(far[valid].max()) if valid.any() else math.inf
+    names = ("front", "back")[:len(maps.patches)]
+    return [patch_list(frame.read(maps.maps[name]), maps.view, maps.half, zr_max, maps.bias) for name in names]
 
 
 def casters_reach_receivers(light, world_to_local, half, is_ortho: bool, casters, receivers) -> bool:
@@ -143,13 +250,13 @@ class SsmMaps:
     half: tuple = (0.0, 0.0)                 # light half extent (metres, or tan for a sun)
     view: LightView | None = None            # the aspect-corrected view the maps were drawn with
     maps: dict = field(default_factory=dict)  # front, back (two-pass), near, far, receivers (packed)
-    patches: list = field(default_factory=list)     # per occluder map: (M, 8) rows of patch_list
+    patches: list = field(default_factory=list)     # per occluder map: its PatchList
     bias: float = DEPTH_EPSILON
     skipped: bool = False
 
     @property
     def nbytes(self) -> int:
-        return resource_bytes(self.maps) + sum(int(rows.nbytes) for rows in self.patches)
+        return resource_bytes(self.maps) + sum(p.nbytes for p in self.patches)
 
 
 def _draw_maps(frame, view, casters, receivers, two_pass) -> dict:
@@ -202,26 +309,24 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
         return SsmMaps(casters, receivers, half, skipped=True)
 
     bias = DEPTH_EPSILON
+    occluder_maps = ("front", "back") if two_pass else ("front",)
     for _attempt in range(4):
         view = ssm_view(lc.view, half, size)
         with frame.timings.stage("ssm_maps"):
             maps = _draw_maps(frame, view, casters, receivers, two_pass)
-            far = frame.read(maps["far"])[..., 0]
-            valid_far = (far > 0.0) & (far < EMPTY_DEPTH)
-            zr_max = float(far[valid_far].max()) if valid_far.any() else math.inf
-            lists = [patch_list(frame.read(maps["front"]), view, half, zr_max, bias)]
-            if two_pass:
-                lists.append(patch_list(frame.read(maps["back"]), view, half, zr_max, bias))
-        work = sum(w for _, w in lists)
+            counted = _count_patches(frame, view, half, [maps[n] for n in occluder_maps], maps["far"], bias)
+        work = sum(counted.works)
         if work <= budget or size <= 32:
             break
+        counted.give_back(frame)
         new = max(32, int(size * (budget / work) ** 0.25 * 0.95))
         frame.warn(f"SSM: light '{light.name}': occluder map lowered from {size} to {new} texels to "
                    f"keep the scatter within ssm_budget ({work / 1e6:.0f} M texel updates)")
         size = new
-    frame.count(ssm_patches=sum(len(p) for p, _ in lists), ssm_work=int(work), ssm_map_size=size)
-    patches = [rows for rows, _ in lists]
-    skipped = all(len(p) == 0 for p in patches)
+    with frame.timings.stage("ssm_maps"):
+        patches = _write_patches(frame, counted)
+    frame.count(ssm_patches=sum(counted.counts), ssm_work=int(work), ssm_map_size=size)
+    skipped = all(p.count == 0 for p in patches)
     if skipped:
         frame.count(ssm_lights_skipped=1)
     return SsmMaps(casters, receivers, half, view, maps, patches, bias, skipped)

@@ -5,8 +5,9 @@ Per light (Fig. 3 of the paper):
   1. occluder map (casters) and receiver depth maps (receivers) from the light centre, aligned with the
      light and with texels of its aspect ratio (§3.1–3.2);
   2. every occluder texel becomes a micro-patch parallel to the light; its penumbra extent on the
-     soft-shadow-map plane is an axis-aligned rectangle (§3.3, computed on the CPU as in the paper, with
-     the work estimate that can lower the map resolution);
+     soft-shadow-map plane is an axis-aligned rectangle (§3.3; the paper computes it on the CPU, here a
+     compute pass does, with the work estimate that can lower the map resolution: only the patch count and
+     the work are read back);
   3. scatter: for every SSM texel inside that rectangle the patch is back-projected onto the light and the
      hidden fraction added (§3.4) — instanced quads with additive blending (default) or a compute pass with
      fixed-point integer atomics (`ssm_scatter`);

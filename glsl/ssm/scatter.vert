@@ -1,7 +1,7 @@
 // SSM scatter, rasterised (Atty et al. 2006 §3.3–3.4): one instanced quad per occluder micro-patch covering
 // its penumbra extent on the soft-shadow-map plane. The extent (an axis-aligned rectangle, the section of
-// the patch's penumbra pyramid, §3.3) is computed on the CPU together with the work estimate and read here
-// from a storage buffer; the quad is drawn with additive blending.
+// the patch's penumbra pyramid, §3.3) is computed by ssm/patches.comp together with the work estimate and
+// read here from its storage buffer; the quad is drawn with additive blending.
 #include "ssm/patch.glsl"
 struct Patch {
     vec4 rect;      // penumbra extent in texels: x0, y0, x1, y1
