@@ -16,6 +16,8 @@ from ..core.shading import spot_uniforms
 from ..core.shader_constants import WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE, WEIGHT_SUN
 from ..core.snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 from ..gpu.frame import MAX_DEPTH_LAYERS
+from ..structures import need
+from ..structures.lit_umbra import LIT_UMBRA
 from .base import MAP_SIZE_SWEEP, Option, Technique
 
 
@@ -128,12 +130,20 @@ class AveragedMaps(Technique):
         Option("averaged_weighted", True, "Weighted",
                "Weight each light sample by its unoccluded contribution at the pixel"),
     )
-    reads_shared = ("seed",)
+    reads_shared = ("seed", "early_skip")
     coarse = {"averaged_light_samples": 8}
     sweep = MAP_SIZE_SWEEP + tuple({"averaged_light_samples": n} for n in (16, 64, 256, 1024))
 
+    def needs_for(self, settings) -> tuple:
+        # The classes come from the light centre's depth map, one map more than the N samples render.
+        return (need(LIT_UMBRA, narrow=True),) if settings.early_skip else ()
+
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
+        classes = lc.structures.get(LIT_UMBRA)
+        # Pixels proven lit or umbra skip every sample's look-up; resolve writes their 1 or 0, which is what
+        # the weighted mean of N equal visibilities is, whatever the weights.
+        skip = ({"u_classes": classes.classes} if classes else {}), {"EARLY_SKIP": int(classes is not None)}
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
         offsets = light_samples(light, n, s.seed, _fills_ball(light, lc.view, lc.split)) if not light.is_delta else np.zeros((1, 2))
         sums = frame.texture((frame.width, frame.height), 4)        # zero-filled
@@ -172,13 +182,14 @@ class AveragedMaps(Technique):
                 records = frame.buffer(_sample_records(part))
                 frame.dispatch("averaged/accumulate.comp", {
                     **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode, **spot},
-                    samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps}, images={0: sums},
-                    buffers={1: records})
+                    samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps, **skip[0]},
+                    images={0: sums}, buffers={1: records}, defines=skip[1])
             frame.give_back(maps)           # the next batch draws into the same array
             frame.give_back(records)
             done += len(part)
             frame.progress.step(done / len(samples), f"{light.name}: sample {done}/{len(samples)}")
-        frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})
+        frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums, **skip[0]}, images={0: out},
+                       defines=skip[1])
 
 
 BATCH_BYTES = 64 << 20          # at most this much texture array per batch
