@@ -16,7 +16,9 @@ from ..core.light_shape import light_depth_extent, light_shape_uniforms
 from ..core.shader_constants import CLASS_LIT, CLASS_UMBRA, CLASS_UNREACHED
 from . import structure
 from .depth_map import DEPTH_MAP
-from .hsm import build_pyramid, chain_bytes
+from ..gpu.programs import program, set_uniforms
+from .hsm import chain_bytes, mip_chain, padded_size
+from .mssm import level_count
 
 LIT_UMBRA = "lit_umbra"
 
@@ -31,8 +33,9 @@ SLACK_TEXELS = 2.0
 @dataclass
 class LitUmbra:
     classes: object             # R32F texture, frame size: CLASS_* per pixel
-    pyramid: object             # RG32F min/max pyramid of the depth map
-    padded: tuple
+    pyramid: object             # RG32F min/max pyramid of the depth map, from level `base` up
+    padded: tuple               # its level-0 size
+    base: int
 
     @property
     def nbytes(self) -> int:
@@ -45,6 +48,30 @@ def counts(classes: np.ndarray) -> dict:
             "skip_lit": int((classes == CLASS_LIT).sum()), "skip_umbra": int((classes == CLASS_UMBRA).sum())}
 
 
+def base_level(width: int, height: int) -> int:
+    """The pyramid's finest level B (cells of 2^B texels): 8×8 cells from 256-texel maps up, finer below. A
+    search area is rarely under a few cells; the texels of finer levels would cost more to write than they
+    save (llvmpipe: a 1024² full pyramid ≈ 25 ms, this one a few)."""
+    return int(np.clip(int(np.log2(max(width, height, 1))) - 5, 0, 3))
+
+
+def build_coarse_pyramid(frame, depth, width: int, height: int):
+    """Min/max pyramid of an R32F depth map from level B = base_level up (glsl/lit_umbra/reduce.comp).
+    Returns (texture, its level count, its level-0 size, B)."""
+    base = base_level(width, height)
+    block = 1 << base
+    pw, ph = padded_size((width + block - 1) // block, (height + block - 1) // block)
+    levels = level_count(pw, ph)
+    tex = frame.texture((pw, ph), 2)
+    tex.build_mipmaps(0, levels - 1)
+    tex.filter = (0x2600, 0x2600)       # GL_NEAREST
+    prog = program(frame.worker, compute="lit_umbra/reduce.comp")
+    depth.use(location=0)
+    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height), "u_block": block})
+    mip_chain(frame, prog, [tex], (pw, ph), levels)
+    return tex, levels, (pw, ph), base
+
+
 @structure(LIT_UMBRA, requires=(DEPTH_MAP,))
 def build(frame, lc, narrow: bool = False, cap: float = 0.0):
     """`narrow`: the area may shrink to the section at the least depth found in it (two passes more) — valid
@@ -55,10 +82,11 @@ def build(frame, lc, narrow: bool = False, cap: float = 0.0):
     view, s = lc.view, frame.settings
     cap_texels = cap * max(view.width, view.height) if cap > 0.0 else 1.0e7
     with frame.timings.stage("lit_umbra"):
-        pyramid, levels, padded = build_pyramid(frame, lc.structures[DEPTH_MAP], view.width, view.height)
+        pyramid, levels, padded, base = build_coarse_pyramid(frame, lc.structures[DEPTH_MAP], view.width,
+                                                             view.height)
         classes = frame.texture((frame.width, frame.height), 1)
         frame.dispatch("lit_umbra/classify.comp", {
-            **lc.uniforms, **light_shape_uniforms(lc.light, view), "u_levels": levels,
+            **lc.uniforms, **light_shape_uniforms(lc.light, view), "u_levels": levels, "u_base": base,
             "u_light_depth_extent": light_depth_extent(lc.light, view.face), "u_margin": MARGIN_TEXELS,
             "u_passes": 3 if narrow else 1, "u_cap": cap_texels,
             "u_slack": SLACK_TEXELS * (1.0 + float(s.bias) + float(s.normal_offset))},
@@ -67,4 +95,4 @@ def build(frame, lc, narrow: bool = False, cap: float = 0.0):
         c = counts(frame.read(classes)[..., 0])
         frame.count(**c)
         lc.stats.update(c)
-    return LitUmbra(classes, pyramid, padded)
+    return LitUmbra(classes, pyramid, padded, base)

@@ -19,8 +19,9 @@
 #include "common/light_view.glsl"
 #include "common/penumbra.glsl"
 
-uniform sampler2D u_pyramid;        // RG32F min/max mip pyramid of the depth map (structures/hsm.py)
-uniform int u_levels;
+uniform sampler2D u_pyramid;        // RG32F min/max mip pyramid of the depth map (lit_umbra/reduce.comp):
+uniform int u_levels;               // its level l holds cells of 2^(l + u_base) texels
+uniform int u_base;
 uniform float u_light_depth_extent; // ρ (metres; 0 for a sun's ortho view)
 uniform float u_margin;             // texels added to the area on each side (kernel taps, bilinear footprint)
 uniform float u_slack;              // depth slack, in texels at the receiver scaled by its slope
@@ -43,13 +44,13 @@ float plane_extreme(Receiver r, vec2 lo, vec2 hi, bool upper) {
 // `gap` (y: umbra), and the least depth seen (z).
 const int CELLS = 4;
 vec3 cell_test(Receiver r, ivec2 lo, ivec2 hi, bool plane, float d, float slack, float gap) {
-    int l = 0;
-    while (l < u_levels - 1 && any(greaterThanEqual((hi >> l) - (lo >> l), ivec2(CELLS)))) ++l;
+    int l = u_base;
+    while (l < u_base + u_levels - 1 && any(greaterThanEqual((hi >> l) - (lo >> l), ivec2(CELLS)))) ++l;
     bool lit = true, umbra = true;
     float zmin = NO_OCCLUDER;
     for (int y = lo.y >> l; y <= hi.y >> l; ++y)
         for (int x = lo.x >> l; x <= hi.x >> l; ++x) {
-            vec2 m = texelFetch(u_pyramid, ivec2(x, y), l).rg;
+            vec2 m = texelFetch(u_pyramid, ivec2(x, y), l - u_base).rg;
             zmin = min(zmin, m.x);
             vec2 a = vec2(max(ivec2(x, y) << l, lo)), b = vec2(min(((ivec2(x, y) + 1) << l) - 1, hi) + 1);
             float top = plane ? plane_extreme(r, a, b, true) : d;
