@@ -136,14 +136,11 @@ class AveragedMaps(Technique):
 
     def needs_for(self, settings) -> tuple:
         # The classes come from the light centre's depth map, one map more than the N samples render.
-        return (need(LIT_UMBRA, narrow=True),) if settings.early_skip else ()
+        return (need(LIT_UMBRA, narrow=True, texel_ratio=SKIP_TEXEL_RATIO),) if settings.early_skip else ()
 
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
         classes = lc.structures.get(LIT_UMBRA)
-        # Pixels proven lit or umbra skip every sample's look-up; resolve writes their 1 or 0, which is what
-        # the weighted mean of N equal visibilities is, whatever the weights.
-        skip = ({"u_classes": classes.classes} if classes else {}), {"EARLY_SKIP": int(classes is not None)}
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
         offsets = light_samples(light, n, s.seed, _fills_ball(light, lc.view, lc.split)) if not light.is_delta else np.zeros((1, 2))
         sums = frame.texture((frame.width, frame.height), 4)        # zero-filled
@@ -169,6 +166,15 @@ class AveragedMaps(Technique):
                                      frame=lc.view.frame, face=lc.view.face)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
             samples.append((view, sample_world, emit))
+        # Pixels proven lit or umbra skip every sample's look-up; resolve writes their 1 or 0, which is what
+        # the weighted mean of N equal visibilities is, whatever the weights. The classes allow for sample
+        # maps whose texels are up to SKIP_TEXEL_RATIO times the centre view's (their bias and offset).
+        if classes is not None:
+            ratio = max(max(v.texel_size()) for v, _, _ in samples) / max(max(lc.view.texel_size()), 1e-30)
+            if ratio > SKIP_TEXEL_RATIO:
+                classes = None
+                frame.count(skip_views_unused=1)
+        skip = ({"u_classes": classes.classes} if classes else {}), {"EARLY_SKIP": int(classes is not None)}
         # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
         largest = max(v.width * v.height for v, _, _ in samples)
         batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
@@ -193,6 +199,7 @@ class AveragedMaps(Technique):
 
 
 BATCH_BYTES = 64 << 20          # at most this much texture array per batch
+SKIP_TEXEL_RATIO = 2.0          # early skip: the largest sample-map texel allowed, in centre-view texels
 
 
 def _sample_records(part) -> bytes:

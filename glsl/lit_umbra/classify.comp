@@ -27,6 +27,7 @@ uniform float u_margin;             // texels added to the area on each side (ke
 uniform float u_slack;              // depth slack, in texels at the receiver scaled by its slope
 uniform int u_passes;               // 1: the area at the near plane only; more: narrowed to the least depth
 uniform float u_cap;                // texels: the most the area's half extent may reach (a technique's cap)
+uniform float u_texel_ratio;        // the largest texel of the gather's maps over this map's (1: this map)
 layout(r32f, binding = 0) uniform writeonly image2D u_class;
 
 // The tangent plane's depth (receiver_depth_at, capped at the receiver, bias added back) at its largest
@@ -61,15 +62,20 @@ vec3 cell_test(Receiver r, ivec2 lo, ivec2 hi, bool plane, float d, float slack,
     return vec3(lit ? 1.0 : 0.0, umbra ? 1.0 : 0.0, zmin);
 }
 
-// Every point of the light (the box ±h × ±ρ in the view's frame; a sun: directions (k·h, 1)) strictly above
-// the plane through r with normal `normal`, by `eps` metres (a direction: its cosine above `eps`).
-bool light_above(Receiver r, vec3 normal, float eps) {
+// Whether every point of the light (the box ±h × ±ρ in the view's frame; a sun: directions (k·h, 1)) lies
+// strictly above the plane through r with normal `normal`, by `eps` metres (a direction: its cosine above
+// `eps`); `tan_max` gets the largest tangent of the angle between the normal and a ray to the light. Both the
+// side and the angle are extreme at a corner: the points within an angle of the normal form a convex cone.
+bool light_above(Receiver r, vec3 normal, float eps, out float tan_max) {
+    tan_max = 0.0;
     for (int i = 0; i < 8; ++i) {
         vec2 k = vec2((i & 1) == 0 ? -1.0 : 1.0, (i & 2) == 0 ? -1.0 : 1.0);
         float z = (i & 4) == 0 ? -u_light_depth_extent : u_light_depth_extent;
-        float side = u_light_ortho == 1 ? dot(normal, normalize(vec3(k * u_light_half, 1.0)))
-                                        : dot(normal, vec3(k * u_light_half, z) - r.local);
+        vec3 ray = u_light_ortho == 1 ? vec3(k * u_light_half, 1.0) : vec3(k * u_light_half, z) - r.local;
+        float side = u_light_ortho == 1 ? dot(normal, normalize(ray)) : dot(normal, ray);
         if (side <= eps) return false;
+        float c = dot(normal, normalize(ray));
+        tan_max = max(tan_max, sqrt(max(1.0 - c * c, 0.0)) / c);
     }
     return true;
 }
@@ -83,6 +89,11 @@ bool light_weighted(Receiver r, vec3 n) {
     return true;
 }
 
+// Whether the light's centre lies above the receiver's tangent plane (receiver_depth_at's own test).
+bool centre_above_plane(Receiver r) {
+    return u_light_ortho == 1 ? r.normal.z > 1e-6 : dot(r.normal, r.local) < 0.0;
+}
+
 float classify(ivec2 px) {
     Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
     float d = r.map.z;
@@ -93,13 +104,25 @@ float classify(ivec2 px) {
     float cos_t = clamp(abs(dot(r.normal, to_light)), 1e-3, 1.0);
     float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
     float slack = u_slack * texel_world(d) * (1.0 + tan_t);
+    // Umbra needs every light point above the geometric tangent plane (below it a sample map's plane test
+    // counts nothing as a blocker) and carrying weight (PCSS's kernels skip weightless taps). Its depth gap
+    // covers the largest bias and normal offset any of the gather's maps applies: texels up to
+    // u_texel_ratio times this one's (and a ball sample's map nearer or farther by ρ), at the light's most
+    // oblique ray.
+    float tan_max = 0.0;
+    bool umbra_possible = centre_above_plane(r)
+                          && light_above(r, r.normal, u_light_ortho == 1 ? 1e-4 : slack, tan_max)
+                          && light_weighted(r, view_direction(texelFetch(g_normal, px, 0).xyz));
+    float tw = u_texel_ratio * texel_world(d) * (d + rho) / d;
+    tan_max = min(max(tan_max, tan_t), 10.0);
+    float gap = u_bias * tw * (0.5 + tan_max) + 2.0 * u_normal_offset * tw * (1.0 + tan_max) + slack;
     // The search area, widened for light points off the z = 0 plane, capped, and grown by the margin. With
     // u_passes > 1 it narrows to the section at the least depth found, as BACKPROJECTION does (§5): nothing
     // nearer lies in it, so no ray to the light meets an occluder outside that section.
     vec2 tp = window_coords(r.local);
     vec2 h = (u_light_half + abs(tp) * rho) * (d / (d - rho));
     vec2 c = clamp(r.map.xy, vec2(-2.0e7), vec2(2.0e7));
-    bool centre_above = u_light_ortho == 1 ? r.normal.z > 1e-6 : dot(r.normal, r.local) < 0.0;
+    bool centre_above = centre_above_plane(r);
     float z = u_light_depth_range.x;
     for (int pass = 0; pass < u_passes; ++pass) {
         vec2 half_ = min(h * penumbra_spread_clamped(z, d, u_light_ortho) / u_texel_tan, vec2(u_cap)) + u_margin;
@@ -108,15 +131,9 @@ float classify(ivec2 px) {
         bool inside = all(greaterThanEqual(lo, ivec2(0))) && all(lessThan(hi, u_map_size));
         // Where the light's centre lies on or below the tangent plane, some light points may still lie above
         // it: only the receiver's depth bounds what can shadow it.
-        vec3 t = cell_test(r, max(lo, ivec2(0)), min(hi, u_map_size - 1), centre_above, d, slack,
-                           r.bias + slack);
+        vec3 t = cell_test(r, max(lo, ivec2(0)), min(hi, u_map_size - 1), centre_above, d, slack, gap);
         if (t.x > 0.0) return float(CLASS_LIT);
-        if (t.y > 0.0 && inside && centre_above) {
-            vec3 n = view_direction(texelFetch(g_normal, px, 0).xyz);
-            float eps = u_light_ortho == 1 ? 1e-4 : slack;
-            if (light_above(r, r.normal, eps) && light_weighted(r, n)) return float(CLASS_UMBRA);
-            return float(CLASS_GATHER);
-        }
+        if (t.y > 0.0 && inside && umbra_possible) return float(CLASS_UMBRA);
         vec2 zr = t.zz;
         if (!(zr.x > z)) break;         // nothing to narrow
         z = zr.x;
