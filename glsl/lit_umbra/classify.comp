@@ -41,25 +41,29 @@ float plane_extreme(Receiver r, vec2 lo, vec2 hi, bool upper) {
 
 // Cell by cell over texels [lo, hi] (clamped to the map), on the finest pyramid level where the box spans at
 // most CELLS cells per axis: whether every cell's least depth lies at or beyond the plane's largest depth
-// over the cell (x: lit), whether every cell's greatest depth lies nearer than the plane's least less
-// `gap` (y: umbra), and the least depth seen (z).
+// over the cell plus `slack` (x: lit), by how much every cell's greatest depth lies nearer than the plane's
+// least (y: umbra where it exceeds the gap; ≤ 0 once a cell fails) and, with `whole`, the least depth (z).
+// Without `whole` it stops at the first cell that rules out both.
 const int CELLS = 4;
-vec3 cell_test(Receiver r, ivec2 lo, ivec2 hi, bool plane, float d, float slack, float gap) {
+vec3 cell_test(Receiver r, ivec2 lo, ivec2 hi, bool plane, float d, float slack, bool whole) {
     int l = u_base;
     while (l < u_base + u_levels - 1 && any(greaterThanEqual((hi >> l) - (lo >> l), ivec2(CELLS)))) ++l;
-    bool lit = true, umbra = true;
+    bool lit = true;
+    float umbra = plane ? NO_OCCLUDER : 0.0;
     float zmin = NO_OCCLUDER;
     for (int y = lo.y >> l; y <= hi.y >> l; ++y)
         for (int x = lo.x >> l; x <= hi.x >> l; ++x) {
             vec2 m = texelFetch(u_pyramid, ivec2(x, y), l - u_base).rg;
             zmin = min(zmin, m.x);
+            if (!lit && umbra <= 0.0) {
+                if (whole) continue;
+                return vec3(0.0, umbra, zmin);
+            }
             vec2 a = vec2(max(ivec2(x, y) << l, lo)), b = vec2(min(((ivec2(x, y) + 1) << l) - 1, hi) + 1);
-            float top = plane ? plane_extreme(r, a, b, true) : d;
-            float bottom = plane ? plane_extreme(r, a, b, false) : 0.0;
-            lit = lit && m.x >= top + slack;
-            umbra = umbra && m.y < bottom - gap;
+            if (lit) lit = m.x >= (plane ? plane_extreme(r, a, b, true) : d) + slack;
+            if (umbra > 0.0) umbra = min(umbra, plane_extreme(r, a, b, false) - m.y);
         }
-    return vec3(lit ? 1.0 : 0.0, umbra ? 1.0 : 0.0, zmin);
+    return vec3(lit ? 1.0 : 0.0, umbra, zmin);
 }
 
 // Whether every point of the light (the box ±h × ±ρ in the view's frame; a sun: directions (k·h, 1)) lies
@@ -89,6 +93,20 @@ bool light_weighted(Receiver r, vec3 n) {
     return true;
 }
 
+// Umbra (given every cell nearer than the plane by `margin`) needs every light point above the geometric
+// tangent plane (below it a sample map's plane test counts nothing as a blocker) and carrying weight (PCSS's
+// kernels skip weightless taps), and a margin beyond the largest bias and normal offset any of the gather's
+// maps applies: texels up to u_texel_ratio times this one's (a ball sample's map nearer or farther by ρ), at
+// the light's most oblique ray.
+bool umbra_gap(Receiver r, ivec2 px, float d, float rho, float slack, float tan_t, float margin) {
+    float tan_max = 0.0;
+    if (!light_above(r, r.normal, u_light_ortho == 1 ? 1e-4 : slack, tan_max)) return false;
+    if (!light_weighted(r, view_direction(texelFetch(g_normal, px, 0).xyz))) return false;
+    float tw = u_texel_ratio * texel_world(d) * (d + rho) / d;
+    tan_max = min(max(tan_max, tan_t), 10.0);
+    return margin > r.bias + u_bias * tw * (0.5 + tan_max) + 2.0 * u_normal_offset * tw * (1.0 + tan_max) + slack;
+}
+
 // Whether the light's centre lies above the receiver's tangent plane (receiver_depth_at's own test).
 bool centre_above_plane(Receiver r) {
     return u_light_ortho == 1 ? r.normal.z > 1e-6 : dot(r.normal, r.local) < 0.0;
@@ -104,18 +122,6 @@ float classify(ivec2 px) {
     float cos_t = clamp(abs(dot(r.normal, to_light)), 1e-3, 1.0);
     float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
     float slack = u_slack * texel_world(d) * (1.0 + tan_t);
-    // Umbra needs every light point above the geometric tangent plane (below it a sample map's plane test
-    // counts nothing as a blocker) and carrying weight (PCSS's kernels skip weightless taps). Its depth gap
-    // covers the largest bias and normal offset any of the gather's maps applies: texels up to
-    // u_texel_ratio times this one's (and a ball sample's map nearer or farther by ρ), at the light's most
-    // oblique ray.
-    float tan_max = 0.0;
-    bool umbra_possible = centre_above_plane(r)
-                          && light_above(r, r.normal, u_light_ortho == 1 ? 1e-4 : slack, tan_max)
-                          && light_weighted(r, view_direction(texelFetch(g_normal, px, 0).xyz));
-    float tw = u_texel_ratio * texel_world(d) * (d + rho) / d;
-    tan_max = min(max(tan_max, tan_t), 10.0);
-    float gap = u_bias * tw * (0.5 + tan_max) + 2.0 * u_normal_offset * tw * (1.0 + tan_max) + slack;
     // The search area, widened for light points off the z = 0 plane, capped, and grown by the margin. With
     // u_passes > 1 it narrows to the section at the least depth found, as BACKPROJECTION does (§5): nothing
     // nearer lies in it, so no ray to the light meets an occluder outside that section.
@@ -131,9 +137,10 @@ float classify(ivec2 px) {
         bool inside = all(greaterThanEqual(lo, ivec2(0))) && all(lessThan(hi, u_map_size));
         // Where the light's centre lies on or below the tangent plane, some light points may still lie above
         // it: only the receiver's depth bounds what can shadow it.
-        vec3 t = cell_test(r, max(lo, ivec2(0)), min(hi, u_map_size - 1), centre_above, d, slack, gap);
+        vec3 t = cell_test(r, max(lo, ivec2(0)), min(hi, u_map_size - 1), centre_above, d, slack,
+                           pass + 1 < u_passes);
         if (t.x > 0.0) return float(CLASS_LIT);
-        if (t.y > 0.0 && inside && umbra_possible) return float(CLASS_UMBRA);
+        if (t.y > 0.0 && inside && umbra_gap(r, px, d, rho, slack, tan_t, t.y)) return float(CLASS_UMBRA);
         vec2 zr = t.zz;
         if (!(zr.x > z)) break;         // nothing to narrow
         z = zr.x;
