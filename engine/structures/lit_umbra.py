@@ -3,9 +3,10 @@ early skip the per-technique gather"). One R32F image the size of the frame: CLA
 light can be hidden, CLASS_UMBRA where every one is, CLASS_GATHER where the technique must look, and
 CLASS_UNREACHED where the light reaches no covered pixel (glsl/lit_umbra/classify.comp says how).
 
-Built from the depth map's min/max pyramid (hsm.build_pyramid, GBP06) over each pixel's receiver–light
-pyramid, the search area of BACKPROJECTION's classification (Schwarz & Stamminger 2007 §2.1, §5). PCSS and
-REFERENCE read it; with `collect_stats` the share of skipped pixels is counted (one readback per view)."""
+Built from a coarse min/max pyramid of the depth map (GBP06's HSM from 8×8-texel cells up) over each pixel's
+receiver–light pyramid, the search area of BACKPROJECTION's classification (Schwarz & Stamminger 2007 §2.1,
+§5). PCSS and REFERENCE read it; with `collect_stats` the pixels skipped are counted (frame.count: skip_lit,
+skip_umbra, skip_candidates; one readback per view)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,9 +15,9 @@ import numpy as np
 
 from ..core.light_shape import light_depth_extent, light_shape_uniforms
 from ..core.shader_constants import CLASS_LIT, CLASS_UMBRA, CLASS_UNREACHED
+from ..gpu.programs import program, set_uniforms
 from . import structure
 from .depth_map import DEPTH_MAP
-from ..gpu.programs import program, set_uniforms
 from .hsm import chain_bytes, mip_chain, padded_size
 from .mssm import level_count
 
