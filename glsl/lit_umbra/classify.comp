@@ -7,14 +7,17 @@
 // holds them all. A light point off the view's z = 0 plane by up to ρ (a sphere light's ball, an area light
 // seen through a cube face) widens it: from a point s at depth −s.z the section is tp ± (|s.xy| + |tp|·ρ)·
 // (d − z)/(z·(d − ρ)), i.e. h grows to (h + |tp|·ρ)·d/(d − ρ). The min/max pyramid of the depth map
-// (GBP06) bounds the depths over that area with at most 2×2 fetches:
+// (GBP06) bounds the depths over that area cell by cell (at most CELLS² cells), each cell against the tangent
+// plane's own extremes over it:
 //   LIT    everything there lies on or below the receiver's tangent plane, or beyond the receiver, with a
 //          slack for the differing bias and normal offset of REFERENCE's per-sample maps: no tap, of any
 //          kernel or any sample map, can find a blocker, so the gather would return exactly 1;
 //   UMBRA  the whole area lies inside the map and everything there is nearer than the plane (less the
 //          bias and the slack), and every point of the light lies above the receiver's geometric tangent
 //          plane and has a positive weight: every tap is a blocker, so the gather would return exactly 0.
-// Everything else is left to the gather (CLASS_GATHER).
+// Everything else is left to the gather (CLASS_GATHER). The tangent plane is the receiver-plane test of
+// receiver_depth_at (common/light_view.glsl), so a tilted floor does not hide its own pixels from LIT — only
+// within a cell: cells much wider than the plane's depth change per texel × slack stay GATHER.
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #include "common/penumbra.glsl"
