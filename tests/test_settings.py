@@ -176,4 +176,4 @@ def test_the_panel_draws_each_techniques_options_from_its_option_list():
         assert [n for n in drawn if n in own] == own, technique.identifier
         others = {o.name for t in techniques.TECHNIQUES.values() if t is not technique for o in t.options}
         assert not others & set(drawn), technique.identifier
-    assert techniques.TECHNIQUES["REFERENCE"].reads_shared == ("seed",)     # drawn beside its options
+    assert techniques.TECHNIQUES["REFERENCE"].reads_shared == ("seed", "early_skip")  # drawn beside its options

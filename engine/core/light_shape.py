@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from .shading import SUN_MAX_HALF
-from .snapshot import AREA, SUN, Light
+from .snapshot import AREA, DISK, ELLIPSE, SUN, Light
 
 
 def penumbra_spread(z, d, ortho: bool):
@@ -41,3 +41,28 @@ def light_half_extent(light: Light, face=None) -> tuple[float, float]:
         t = math.tan(min(light.angle / 2.0, SUN_MAX_HALF))      # finite up to a 180° sun
         return (t, t)
     return (light.radius, light.radius)
+
+
+def light_depth_extent(light: Light, face=None) -> float:
+    """How far (metres) the light's points reach off its view's z = 0 plane: 0 for an area light seen along
+    its own axis and for a sun's ortho view; an area light's corners across a cube face's axis; a point or
+    spot light's radius (REFERENCE may sample its ball, not only the disk facing the view)."""
+    if light.kind == SUN:
+        return 0.0
+    if light.kind == AREA:
+        if face is None:
+            return 0.0
+        corners = np.array([[sx * light.size_x / 2.0, sy * light.size_y / 2.0, 0.0] for sx in (-1, 1)
+                            for sy in (-1, 1)])
+        return float(np.max(np.abs(corners @ np.asarray(face, float).T)[:, 2]))
+    return float(light.radius)
+
+
+def light_shape_uniforms(light: Light, view) -> dict:
+    """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun), whether it
+    is round (disk, ellipse, sphere, sun) or rectangular, and whether it is a one-sided planar emitter and
+    its emission axis in the view's frame: what filter kernels, samplers and their weights need."""
+    round_ = light.kind != AREA or light.shape in (DISK, ELLIPSE)
+    emit = np.asarray(view.view, float)[:3, :3] @ np.asarray(light.direction, float)
+    return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(round_),
+            "u_light_one_sided": int(light.kind == AREA), "u_light_emit": tuple(float(x) for x in emit)}

@@ -21,6 +21,9 @@ SHARED = (
     Option("normal_offset", 0.5, "Normal Offset", "Receiver offset along its normal, in shadow-map texels",
            min=0.0, max=100.0),
     Option("seed", 0, "Seed", "Seed of the techniques' sample patterns", min=0),
+    Option("early_skip", False, "Skip Lit/Umbra Pixels",
+           "PCSS and REFERENCE skip their gather where a conservative test proves a pixel fully lit or in umbra "
+           "(same result, less work)"),
     Option("debug_passes", False, "Debug Passes", "Also write the technique's debug passes"),
     Option("antialiasing", True, "Anti-aliasing",
            "4× multisampled G-buffer with one visibility per pixel (Schwarz & Stamminger 2008, §7): shading per "
@@ -52,6 +55,7 @@ class RenderSettings:
     bias: float = _SHARED["bias"].default
     normal_offset: float = _SHARED["normal_offset"].default
     seed: int = _SHARED["seed"].default
+    early_skip: bool = _SHARED["early_skip"].default
     # passes beyond Combined/Depth/Visibility/Unshadowed
     debug_passes: bool = _SHARED["debug_passes"].default
     antialiasing: bool = _SHARED["antialiasing"].default

@@ -11,6 +11,8 @@ CLASS_UNREACHED = -1        # the light does not reach the pixel
 CLASS_LIT = 0               # proven fully lit by the search refinement
 CLASS_UMBRA = 1             # proven in umbra
 CLASS_BACKPROJECTED = 2     # micro-occluders were backprojected
+# The lit_umbra structure's classes (structures/lit_umbra.py) are the same, with one for what it cannot prove.
+CLASS_GATHER = 2            # neither proven lit nor umbra: the technique's full gather runs
 
 # BACKPROJECTION's search refinement (the REFINE define) and micro-occluder (PRIMITIVE define).
 REFINE_NONE, REFINE_HSM, REFINE_MSSM, REFINE_YSM = 0, 1, 2, 3

@@ -18,6 +18,8 @@ from ..core.shader_constants import (SIDE_ALL, SIDE_INSIDE, SIDE_OUTSIDE, WEIGHT
                                      WEIGHT_SUN)
 from ..core.snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 from ..gpu.frame import MAX_DEPTH_LAYERS
+from ..structures import need
+from ..structures.lit_umbra import LIT_UMBRA
 from .base import MAP_SIZE_SWEEP, Option, Technique
 
 
@@ -154,9 +156,13 @@ class AveragedMaps(Technique):
         Option("averaged_weighted", True, "Weighted",
                "Weight each light sample by its unoccluded contribution at the pixel"),
     )
-    reads_shared = ("seed",)
+    reads_shared = ("seed", "early_skip")
     coarse = {"averaged_light_samples": 8}
     sweep = MAP_SIZE_SWEEP + tuple({"averaged_light_samples": n} for n in (16, 64, 256, 1024))
+
+    def needs_for(self, settings) -> tuple:
+        # The classes come from the light centre's depth map, one map more than the N samples render.
+        return (need(LIT_UMBRA, narrow=True, texel_ratio=SKIP_TEXEL_RATIO),) if settings.early_skip else ()
 
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
@@ -177,9 +183,21 @@ class AveragedMaps(Technique):
             sets = ([(offsets, clip, SIDE_OUTSIDE)] if clip else []) + \
                    ([(sphere_surface(n, s.seed) * light.radius, None, SIDE_INSIDE)] if inside else [])
         total = sum(len(o) for o, _, _ in sets)
+        # The classes come from the centre's map with every caster: not those of a true sphere's sets.
+        classes = lc.structures.get(LIT_UMBRA) if not true_sphere else None
+        skip = {}, {"EARLY_SKIP": 0}
         done = 0
         for set_offsets, clip, side in sets:
             samples = self._samples(frame, lc, set_offsets)
+            # Pixels proven lit or umbra skip every sample's look-up; resolve writes their 1 or 0, which is
+            # what the weighted mean of N equal visibilities is, whatever the weights. The classes allow for
+            # sample maps whose texels are up to SKIP_TEXEL_RATIO times the centre view's (bias and offset).
+            if classes is not None:
+                ratio = max(max(v.texel_size()) for v, _, _ in samples) / max(max(lc.view.texel_size()), 1e-30)
+                if ratio > SKIP_TEXEL_RATIO:
+                    classes = None
+                    frame.count(skip_views_unused=1)
+            skip = ({"u_classes": classes.classes} if classes else {}), {"EARLY_SKIP": int(classes is not None)}
             # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
             largest = max(v.width * v.height for v, _, _ in samples)
             batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
@@ -193,13 +211,14 @@ class AveragedMaps(Technique):
                     frame.dispatch("averaged/accumulate.comp", {
                         **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode,
                         "u_side": side, **spot},
-                        samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps}, images={0: sums},
-                        buffers={1: records})
+                        samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps, **skip[0]},
+                        images={0: sums}, buffers={1: records}, defines=skip[1])
                 frame.give_back(maps)           # the next batch draws into the same array
                 frame.give_back(records)
                 done += len(part)
                 frame.progress.step(done / total, f"{light.name}: sample {done}/{total}")
-        frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums}, images={0: out})
+        frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums, **skip[0]}, images={0: out},
+                       defines=skip[1])
 
     @staticmethod
     def _samples(frame, lc, offsets) -> list:
@@ -226,6 +245,7 @@ class AveragedMaps(Technique):
 
 
 BATCH_BYTES = 64 << 20          # at most this much texture array per batch
+SKIP_TEXEL_RATIO = 2.0          # early skip: the largest sample-map texel allowed, in centre-view texels
 
 
 def _sample_records(part) -> bytes:

@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..core.light_shape import light_half_extent
+from ..core.light_shape import light_shape_uniforms  # noqa: F401  (techniques import it from here)
 from ..core.lightview import LightView
 from ..structures.depth_map import DEPTH_MAP  # noqa: F401  (the default need; techniques import it from here)
 from ..core.options import Option  # noqa: F401  (techniques declare their options with it)
@@ -65,15 +65,3 @@ class Technique:
 
     def visibility(self, frame, lc: LightContext, out) -> None:
         raise NotImplementedError
-
-
-def light_shape_uniforms(light: Light, view: LightView) -> dict:
-    """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun), whether it
-    is round (disk, ellipse, sphere, sun) or rectangular, and whether it is a one-sided planar emitter and
-    its emission axis in the view's frame: what filter kernels, samplers and their weights need."""
-    import numpy as np
-    from ..core.snapshot import AREA, DISK, ELLIPSE
-    round_ = light.kind != AREA or light.shape in (DISK, ELLIPSE)
-    emit = np.asarray(view.view, float)[:3, :3] @ np.asarray(light.direction, float)
-    return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(round_),
-            "u_light_one_sided": int(light.kind == AREA), "u_light_emit": tuple(float(x) for x in emit)}

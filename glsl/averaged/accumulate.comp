@@ -25,10 +25,16 @@ uniform int u_count;
 uniform vec4 u_sphere_inside;     // a true sphere light's centre and r² (r² = -1 for any other light)
 uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine), WEIGHT_SUN
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
+#if EARLY_SKIP
+uniform sampler2D u_classes;      // structures/lit_umbra.py: pixels proven lit or umbra need no sample
+#endif
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px) || !pixel_lit(px)) return;
+#if EARLY_SKIP
+    if (texelFetch(u_classes, px, 0).r != float(CLASS_GATHER)) return;
+#endif
     vec3 p = texelFetch(g_position, px, 0).xyz;
     vec4 geometric = texelFetch(g_geometric, px, 0);
     vec3 ng = geometric.xyz;

@@ -12,12 +12,17 @@
 // Both kernels use one fixed stratified pattern for every pixel: the result is a smooth function of the
 // receiver's position, with no per-pixel noise (a per-pixel rotation turns into salt-and-pepper across the
 // penumbra, whose error no later filter removes).
+// With EARLY_SKIP, pixels the lit_umbra structure proves fully lit or in umbra take 1 or 0 without either
+// kernel: exactly what the kernels would return there (glsl/lit_umbra/classify.comp).
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #include "common/sampling.glsl"
 #include "common/penumbra.glsl"
 
 uniform sampler2D u_depth_map;
+#if EARLY_SKIP
+uniform sampler2D u_classes;    // structures/lit_umbra.py: pixels proven lit or umbra skip both kernels
+#endif
 uniform int u_blocker_samples;
 uniform int u_filter_samples;
 uniform float u_max_radius;     // texels
@@ -33,7 +38,13 @@ void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
     float v = 1.0;
+#if EARLY_SKIP
+    float cls = texelFetch(u_classes, px, 0).r;
+    if (cls == float(CLASS_UMBRA)) v = 0.0;
+    if (cls == float(CLASS_GATHER) && pixel_lit(px)) {
+#else
     if (pixel_lit(px)) {
+#endif
         Receiver r = pixel_receiver(px);
         vec3 n = view_direction(texelFetch(g_normal, px, 0).xyz);
         float d = r.map.z - r.bias;
