@@ -34,18 +34,27 @@ def chain_bytes(width: int, height: int, texel_bytes: int) -> int:
     return sum(max(pw >> l_, 1) * max(ph >> l_, 1) * texel_bytes for l_ in range(level_count(pw, ph)))
 
 
-def build_pyramid(frame, depth, width: int, height: int):
-    """Min/max pyramid of one R32F depth map. Returns (texture, levels, padded size)."""
-    pw, ph = padded_size(width, height)
+def reduce_pyramid(frame, shader: str, depth, size, uniforms: dict):
+    """An RG32F min/max pyramid over the padded `size` (full mip chain, nearest filtering), its level 0
+    filled from the R32F `depth` map by the compute `shader` and the rest by mip_chain. Returns (texture,
+    levels)."""
+    pw, ph = size
     levels = level_count(pw, ph)
     tex = frame.texture((pw, ph), 2)
     tex.build_mipmaps(0, levels - 1)
     tex.filter = (0x2600, 0x2600)       # GL_NEAREST
-    prog = program(frame.worker, compute="backprojection/hsm.comp")
+    prog = program(frame.worker, compute=shader)
     depth.use(location=0)
-    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
+    set_uniforms(prog, {"u_depth": 0, **uniforms})
     mip_chain(frame, prog, [tex], (pw, ph), levels)
-    return tex, levels, (pw, ph)
+    return tex, levels
+
+
+def build_pyramid(frame, depth, width: int, height: int):
+    """Min/max pyramid of one R32F depth map. Returns (texture, levels, padded size)."""
+    size = padded_size(width, height)
+    tex, levels = reduce_pyramid(frame, "backprojection/hsm.comp", depth, size, {"u_map_size": (width, height)})
+    return tex, levels, size
 
 
 def mip_chain(frame, prog, textures, padded, levels: int, extra=None) -> None:

@@ -15,11 +15,9 @@ import numpy as np
 
 from ..core.light_shape import light_depth_extent, light_shape_uniforms
 from ..core.shader_constants import CLASS_LIT, CLASS_UMBRA, CLASS_UNREACHED
-from ..gpu.programs import program, set_uniforms
 from . import structure
 from .depth_map import DEPTH_MAP
-from .hsm import chain_bytes, mip_chain, padded_size
-from .mssm import level_count
+from .hsm import chain_bytes, padded_size, reduce_pyramid
 
 LIT_UMBRA = "lit_umbra"
 
@@ -61,16 +59,10 @@ def build_coarse_pyramid(frame, depth, width: int, height: int):
     Returns (texture, its level count, its level-0 size, B)."""
     base = base_level(width, height)
     block = 1 << base
-    pw, ph = padded_size((width + block - 1) // block, (height + block - 1) // block)
-    levels = level_count(pw, ph)
-    tex = frame.texture((pw, ph), 2)
-    tex.build_mipmaps(0, levels - 1)
-    tex.filter = (0x2600, 0x2600)       # GL_NEAREST
-    prog = program(frame.worker, compute="lit_umbra/reduce.comp")
-    depth.use(location=0)
-    set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height), "u_block": block})
-    mip_chain(frame, prog, [tex], (pw, ph), levels)
-    return tex, levels, (pw, ph), base
+    size = padded_size((width + block - 1) // block, (height + block - 1) // block)
+    tex, levels = reduce_pyramid(frame, "lit_umbra/reduce.comp", depth, size,
+                                 {"u_map_size": (width, height), "u_block": block})
+    return tex, levels, size, base
 
 
 @structure(LIT_UMBRA, requires=(DEPTH_MAP,))
