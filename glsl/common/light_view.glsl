@@ -84,11 +84,10 @@ Receiver make_lit_receiver(vec3 p, vec3 ng, vec3 n, float lift, vec3 to_light) {
         q += n * (lift * amount);
     }
     Receiver r = make_receiver(q, ng);
-    // A flat face (no lift) keeps the tangent-plane rule for a light centre behind it: that carries nothing
-    // itself, and the techniques that stand for a whole light by its centre must not let the face's own
-    // object shadow the part of the light in front of it (a cube's sides under a wide light). A smooth
-    // triangle stands for a surface that curves away behind it: a light behind it is behind that surface.
-    r.through_surface = ngl <= 0.0 && (nl_signed > 0.0 || lift != 0.0);
+    // Only while n faces the light: a light point below both horizons carries nothing itself, and the
+    // techniques that stand for a whole light by its centre must not let the receiver's own object shadow
+    // the part of the light that is above them (a cube's sides, a ball's far side under a wide light).
+    r.through_surface = ngl <= 0.0 && nl_signed > 0.0;
     return r;
 }
 
