@@ -197,10 +197,12 @@ void main() {
     if (!pixel_in_image(px)) return;
     float v = 1.0, cls = 0.0;
     if (pixel_lit(px)) {
-        Receiver r = pixel_receiver(px);
+        // Not pixel_receiver's lifted point: the sub-texel tests compare this surface point's own position
+        // and depth with the stored triangles (the terminator is handled below, as HARD handles it).
+        vec3 surface = texelFetch(g_position, px, 0).xyz;
+        Receiver r = make_receiver(surface, texelFetch(g_geometric, px, 0).xyz);
         // The normal offset keeps its depth, not its sideways shift: at sub-texel precision that shift
         // (δ·tanθ on the receiver) moves outer shadow edges outwards.
-        vec3 surface = texelFetch(g_position, px, 0).xyz;
         vec2 p = map_coords(light_local(surface)).xy;
         vec2 hard_pos = r.map.xy;
         r.map.xy = p;
