@@ -180,10 +180,10 @@ def _flat_triangles(mesh, triangle_faces):
 
 
 def _triangle_normals(pos: np.ndarray) -> np.ndarray:
-    """Unit geometric normals (n, 3) of triangles (n, 3, 3), counter-clockwise front; zero for a degenerate
-    triangle (sanitize repairs or drops it later)."""
-    n = np.cross(pos[:, 1] - pos[:, 0], pos[:, 2] - pos[:, 0])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
+    """Unit geometric normals (..., 3) of triangles (..., 3, 3), counter-clockwise front; zero for a
+    degenerate triangle (sanitize repairs or drops it later)."""
+    n = np.cross(pos[..., 1, :] - pos[..., 0, :], pos[..., 2, :] - pos[..., 0, :])
+    length = np.linalg.norm(n, axis=-1, keepdims=True)
     return np.divide(n, length, out=np.zeros_like(n), where=length > 0).astype(np.float32)
 
 
@@ -244,9 +244,7 @@ def transform_instances(arrays: _MeshArrays, matrices: np.ndarray):
         pos += matrices[:, None, :3, 3].astype(np.float32)
         pos = pos.reshape(k, t, 3, 3)
         nrm = np.matmul(arrays.nrm.reshape(1, t * 3, 3), cof.transpose(0, 2, 1)).reshape(k, t, 3, 3)
-        face = np.cross(pos[singular, :, 1] - pos[singular, :, 0], pos[singular, :, 2] - pos[singular, :, 0])
-        length = np.linalg.norm(face, axis=-1, keepdims=True)
-        face = np.divide(face, length, out=np.zeros_like(face), where=length > 0)
+        face = _triangle_normals(pos[singular])
         nrm[singular] = face[:, :, None, :]         # zero where the triangle itself collapsed (dropped later)
         rest = ~singular
         if rest.any():
@@ -833,10 +831,9 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
 
 def object_info(ob, parent) -> tuple[str, bool, bool, str, float, float]:
     """(name, caster, receiver, role, importance, terminator offset) of a mesh object as one instance sees it
-    (ObjectInfo's fields, in order), `parent` its
-    instancer (None when not instanced): what the final render and the viewport both read. Cycles ANDs the
-    instancer's ray visibility into the instance's; an instance whose own Shadow Role is Both takes its
-    instancer's, one without importance its instancer's."""
+    (ObjectInfo's fields, in order), `parent` its instancer (None when not instanced): what the final render
+    and the viewport both read. Cycles ANDs the instancer's ray visibility into the instance's; an instance
+    whose own Shadow Role is Both takes its instancer's, one without importance its instancer's."""
     caster = bool(ob.visible_shadow)
     receiver = bool(ob.visible_camera)
     role = _role(ob)
