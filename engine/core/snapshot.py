@@ -6,6 +6,7 @@ build them directly. Everything is in world space, metres, right-handed, Z up (B
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -261,8 +262,10 @@ class SceneSnapshot:
         return values[-1], (f"objects differ in Shadow Terminator Geometry Offset ({', '.join(f'{v:g}' for v in values)}): "
                             f"Penumbra uses {values[-1]:g} for all of them")
 
+    @cached_property
     def has_smooth_triangles(self) -> bool:
-        """True when some triangle's corner normals differ (flat triangles carry their own normal thrice)."""
+        """True when some triangle's corner normals differ (flat triangles carry their own normal thrice).
+        One pass over the normals per snapshot, not per frame (a bench renders one snapshot many times)."""
         n = self.normals
         return bool(n.shape[0]) and bool((np.abs(n[:, 1:] - n[:, :1]) > 1e-6).any())
 

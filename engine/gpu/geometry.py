@@ -186,7 +186,7 @@ class SoupGeometry(SceneGeometry):
         self.vbo = ctx.buffer(interleave(snap.positions, snap.normals, albedo) if t else bytes(36))
         self._masks = {"receiver": snap.receiver_mask(), "caster": snap.caster_mask()}
         self.has_casters = bool(self._masks["caster"].any())
-        self.has_smooth = snap.has_smooth_triangles()
+        self.has_smooth = snap.has_smooth_triangles
         self._ibos: dict = {}
         self._bounds = self._flat = self._convex = None
         self.nbytes = self.vbo.size
