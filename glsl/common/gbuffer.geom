@@ -20,11 +20,16 @@ flat out vec3 v_corner[3];
 flat out vec3 v_corner_normal[3];
 
 void main() {
+    vec3 unit_normal[3];
+    for (int j = 0; j < 3; ++j) {
+        float len = length(vs_normal[j]);
+        unit_normal[j] = len > 0.0 ? vs_normal[j] / len : vec3(0.0);
+    }
     for (int k = 0; k < 3; ++k) {
+        // flat outputs are undefined after EmitVertex: set them for every vertex
         for (int j = 0; j < 3; ++j) {
             v_corner[j] = vs_position[j];
-            float len = length(vs_normal[j]);
-            v_corner_normal[j] = len > 0.0 ? vs_normal[j] / len : vec3(0.0);
+            v_corner_normal[j] = unit_normal[j];
         }
         gl_Position = gl_in[k].gl_Position;
         v_position = vs_position[k];
