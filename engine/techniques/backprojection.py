@@ -345,7 +345,7 @@ class Backprojection(Technique):
                 for k in range(chunks):
                     frame.progress.check()
                     frame.dispatch("backprojection/visibility.comp",
-                                   {**uniforms, "u_chunk": k, "u_chunks": chunks, "u_chunk_cells": CHUNK_CELLS},
+                                   {**uniforms, **loops.chunk_uniforms(k, chunks, CHUNK_CELLS)},
                                    samplers=samplers, images=images, defines={**defines, "CHUNKED": 1},
                                    buffers={4: state})
             lc.stats["gather_dispatches"] = chunks

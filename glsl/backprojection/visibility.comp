@@ -648,12 +648,12 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
 
 #if CHUNKED
 // A pixel's gathers (one level, or ⌊ℓ⌋ then ⌈ℓ⌉ when blending) split over u_chunks dispatches of at most
-// u_chunk_cells micro-occluders each (the loop limit above); between them the occlusion of each gather
+// u_chunk_size micro-occluders each (the loop limit above); between them the occlusion of each gather
 // ("slot") waits in u_state: BITS words of bitmask, then the area's bits.
 layout(std430, binding = 4) buffer State { uint u_state[]; };
 uniform int u_chunk;            // this dispatch, 0 … u_chunks − 1
 uniform int u_chunks;
-uniform int u_chunk_cells;
+uniform int u_chunk_size;
 const int SLOTS = LOQ == LOQ_BLEND ? 2 : 1;
 
 int state_base(ivec2 px, int slot) {
@@ -688,8 +688,8 @@ Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, int l, inout float count, int slot
     count += float(n);
 #if CHUNKED
     Occlusion o = load_state(p.px, slot);
-    int w0 = u_chunk * u_chunk_cells - start;
-    gather_range(p, lo, hi, l, clamp(w0, 0, n), clamp(w0 + u_chunk_cells, 0, n), o);
+    int w0 = u_chunk * u_chunk_size - start;
+    gather_range(p, lo, hi, l, clamp(w0, 0, n), clamp(w0 + u_chunk_size, 0, n), o);
     store_state(p.px, slot, o);
 #else
     Occlusion o = no_occlusion();
