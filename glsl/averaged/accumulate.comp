@@ -23,11 +23,33 @@ struct Sample {
 layout(std430, binding = 1) readonly buffer Samples { Sample samples[]; };
 uniform int u_count;
 uniform vec4 u_sphere_inside;     // a true sphere light's centre and r² (r² = -1 for any other light)
+// A soft-falloff point or spot light (Cycles' disk of radius r at the centre, facing each receiver): the axis
+// of the disk the samples lie on (0 when they fill the ball) and r; r = -1 for any other light.
+uniform vec4 u_soft_disk;
 uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine), WEIGHT_SUN
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
 #if EARLY_SKIP
 uniform sampler2D u_classes;      // structures/lit_umbra.py: pixels proven lit or umbra need no sample
 #endif
+
+// Cycles' soft falloff samples the disk through the light centre facing p (kernel/light/point.h and spot.h,
+// the "oriented disk"): per unit of solid angle its integrand is the receiver's cosine over the directions
+// that meet that disk. The samples lie on another disk (the view's XY plane) or fill the ball, whose density
+// in solid angle is ∝ cosθ/d² at the disk they were drawn on (for the ball, whose projection along the ray
+// is a disk facing p, the facing disk's). So a sample weighs that cosine besides the receiver's cosine over
+// d², and nothing when its ray misses Cycles' disk. Far from the light (d ≫ r) both cosines are ~1 and every
+// ray meets the disk; at d ~ r they decide the weights (fuzz 63: a 2.2 m spot 2.4 m away).
+float soft_disk_weight(vec3 p, vec3 to_light) {
+    vec3 m = p - u_sphere_inside.xyz;
+    float d = length(m);
+    if (d <= 0.0) return 1.0;
+    m /= d;
+    float cos_facing = -dot(to_light, m);
+    if (cos_facing <= 0.0) return 0.0;
+    vec3 on_disk = p + to_light * (d / cos_facing) - u_sphere_inside.xyz;
+    if (dot(on_disk, on_disk) > u_soft_disk.w * u_soft_disk.w * 1.0001) return 0.0;
+    return dot(u_soft_disk.xyz, u_soft_disk.xyz) > 0.0 ? abs(dot(to_light, u_soft_disk.xyz)) : cos_facing;
+}
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -70,6 +92,7 @@ void main() {
                 // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
                 // sphere Cycles applies no cone.
                 if (u_spot_cos_half > -1.0 && !inside_sphere) w *= spot_attenuation(-to_light);
+                if (u_soft_disk.w > 0.0) w *= soft_disk_weight(p, to_light);
                 if (u_side == SIDE_INSIDE) {
                     // uniform points of the surface seen from inside: dω = cosθ_surface·dA/d²; a spot's sphere
                     // is one-sided for BSDF rays (those towards its centre), which MIS weighs as much again
