@@ -6,12 +6,17 @@ against Cycles on hand-built scenes of the class, and the sample-count rule in i
   few of the 64 samples, whose steps show in the penumbra (averaged.cone_sample_count).
 * A soft-falloff spot 2.4 m from its receivers with a 2.2 m radius: Cycles samples the disk through the
   centre facing each receiver, so a sample weighs the emitter's cosine and counts only while its ray meets
-  that disk (averaged/accumulate.comp soft_disk_weight)."""
+  that disk (averaged/accumulate.comp soft_disk_weight).
+* A smooth low-poly cylinder 1 m under an 11.5 m soft-falloff spot (fuzz 13's class): each receiver sees a
+  0.5 m footprint of the disk through the cone, so the samples are drawn where some receiver's footprint
+  lies (averaged.cone_region) instead of over the whole disk. Measured at 64²: 0.236 on the code before
+  these changes, 0.043 after, Cycles' noise floor 0.054."""
 import numpy as np
 import pytest
 
 from penumbra.engine.core.snapshot import Light, POINT, SPOT
-from penumbra.engine.techniques.averaged import CONE_SAMPLES_MAX, cone_sample_count
+from penumbra.engine.techniques.averaged import (CONE_SAMPLES_MAX, cone_region, cone_sample_count,
+                                                 region_disk_samples)
 
 
 def _spot(radius, spot_size, scale=(1.0, 1.0, 1.0), kind=SPOT):
@@ -39,6 +44,28 @@ def test_cone_sample_count_follows_the_footprint_share():
     assert cone_sample_count(_spot(3.0, 0.4), 1, FLOOR) == 1
 
 
+def test_cone_region_holds_every_receivers_footprint():
+    light = _spot(11.5, 0.5)                              # the light looks down -Z from 5 m
+    small = (np.array([-0.5, -0.2, 0.0]), np.array([0.5, 0.2, 1.0]))
+    x0, x1, y0, y1 = cone_region(light, small)
+    t = np.tan(0.25)
+    # the widest reach is from the lowest corners (5 m below): 0.5 + 5·tanβ along x, 0.2 + 5·tanβ along y
+    assert np.allclose((x0, x1, y0, y1), (-0.5 - 5 * t, 0.5 + 5 * t, -0.2 - 5 * t, 0.2 + 5 * t))
+    # every direction from a disk point to a receiver inside the cone starts inside the region
+    rng = np.random.default_rng(1)
+    p = rng.uniform(small[0], small[1], (2000, 3)) - np.array([0.0, 0.0, 5.0])
+    q = rng.uniform(-11.5, 11.5, (2000, 2))
+    d = p - np.c_[q, np.zeros(len(q))]
+    inside = np.hypot(d[:, 0], d[:, 1]) <= -d[:, 2] * t
+    assert inside.any()
+    assert np.all((q[inside, 0] >= x0) & (q[inside, 0] <= x1) & (q[inside, 1] >= y0) & (q[inside, 1] <= y1))
+    pts = region_disk_samples(256, (x0, x1, y0, y1), 11.5)
+    assert len(pts) == 256 and pts[:, 0].min() >= x0 and pts[:, 0].max() <= x1
+    # a cone wide enough for the whole disk, or a receiver above the light: no region
+    assert cone_region(_spot(0.5, 1.0), small) is None
+    assert cone_region(light, (np.array([-1.0, -1.0, 0.0]), np.array([1.0, 1.0, 6.0]))) is None
+
+
 def _params(light: dict, objects: list) -> dict:
     return {"seed": -1, "objects": objects,
             "floor": {"half_size": 8.0, "rotation": [0.0, 0.0, 0.0], "z": 0.0},
@@ -60,6 +87,18 @@ CASES = {
     # fuzz 63's class: a 2.2 m soft-falloff spot 2.4 m from the floor, cone wider than the light
     "soft_spot_near": _params({"location": [0.5, 0.0, 1.6], "target": [0.3, 0.0, 0.0], "radius": 2.2,
                                "energy": 800.0, "spot_size": 2.2}, [_ball([0.0, 0.0, 0.5], 0.4)]),
+    # fuzz 13's class: a smooth low-poly cylinder under an 11.5 m soft-falloff spot 1 m above it, whose 31°
+    # cone lets each receiver see a 0.5 m footprint of the disk: the samples lie where some receiver's
+    # footprint does (averaged.cone_region); 0.22 before the terminator rule of a28ab54, 0.088 with 1024
+    # samples over the whole disk
+    "smooth_cylinder_huge_spot": {
+        **_params({"location": [-0.9, -0.5, 2.3], "target": [-0.6, -0.5, 1.5], "radius": 11.5, "energy": 980.0,
+                   "spot_size": 0.545, "spot_blend": 0.67},
+                  [{"name": "Obj0", "primitive": "CYLINDER", "transform": "nonuniform", "location": [0.0, 0.0, 1.2],
+                    "rotation": [1.5708, 0.0, 0.3], "scale": [0.65, 0.65, 1.6], "smooth": True}]),
+        "floor": {"half_size": 20.0, "rotation": [0.0, 0.0, 0.0], "z": -0.23},
+        "camera": {"ortho": False, "location": [-0.54, 4.25, 5.66], "target": [0.26, -0.15, -0.11], "lens": 59.3,
+                   "ortho_scale": 5.7, "inside": None}},
 }
 
 

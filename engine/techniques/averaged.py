@@ -6,7 +6,9 @@ Sample points: an R2 low-discrepancy set over the square, mapped to the disk by 
 map for round lights. Sphere lights are sampled over their great disk facing the receivers (the view's XY
 plane); a true sphere's receivers outside it over its ball without the casters inside it, those inside it
 over its surface; suns uniformly over their cone of directions, each weighted by the receiver's cosine. Each map's view keeps the light's axes and is refitted from the
-sample point.
+sample point. A spot whose cone lets each receiver see only part of its disk gets its samples where some
+receiver's footprint lies (cone_region), as many as keep the setting's count in each footprint
+(cone_sample_count).
 """
 from __future__ import annotations
 
@@ -122,24 +124,77 @@ def _fills_ball(light: Light, view, split: bool) -> bool:
 CONE_SAMPLES_MAX = 16         # cone_sample_count: at most this many times the setting's samples
 
 
-def cone_sample_count(light: Light, n: int, receivers) -> int:
+def _cone_tans(light: Light) -> tuple[float, float]:
+    """tan of the spot cone's half angle along the light's local X and Y: the object scale stretches the cone
+    by scale x (y) over scale z, as spot.glsl's u_spot_to_local does."""
+    s = np.maximum(np.abs(np.asarray(light.spot_scale, float)), 1e-12)
+    t = np.tan(min(light.spot_size / 2.0, np.pi / 2.0 - 1e-6))
+    return float(t * s[0] / s[2]), float(t * s[1] / s[2])
+
+
+def cone_sample_count(light: Light, n: int, receivers, region_area: float | None = None) -> int:
     """Samples to draw over a spot light with a radius so that about `n` of them light each receiver. Cycles
-    applies the cone per ray (kernel/light/spot.h), so a receiver at distance d receives light only through
-    the cone's footprint on the emitter, an ellipse of half axes d·tanβ·(scale x or y / scale z): where that is
-    smaller than the light, only its share of the samples carries weight at the receiver, and the average of so
-    few hard maps shows their steps (fuzz 36: a 3.1 m spot 5 m away, 64 samples 0.052, 256 0.019 against a
-    noise floor of 0.019). The nearest lit receiver's distance (the box of the pixels the light reaches) sets
-    the share; the count grows by its inverse, up to CONE_SAMPLES_MAX times `n`."""
+    applies the cone per ray (kernel/light/spot.h), so a receiver at depth d below the light receives light
+    only through the cone's footprint on the emitter, an ellipse of half axes d·tanβ·(scale x or y / scale z):
+    where that is smaller than the area the samples are drawn over (`region_area`, the disk by default), only
+    its share of the samples carries weight at the receiver, and the average of so few hard maps shows their
+    steps (fuzz 36: a 3.1 m spot 5 m away, 64 samples 0.052, 256 0.019 against a noise floor of 0.019). The
+    nearest lit receiver (the box of the pixels the light reaches) sets the share; the count grows by its
+    inverse, up to CONE_SAMPLES_MAX times `n`."""
     if light.kind != SPOT or light.is_delta or light.radius <= 0.0 or n <= 1:
         return n
     lo, hi = (np.asarray(b, float) for b in receivers)
     c = np.asarray(light.position, float)
     d = float(np.linalg.norm(np.clip(c, lo, hi) - c))
-    scale = np.maximum(np.abs(np.asarray(light.spot_scale, float)), 1e-12)
-    half = min(light.spot_size / 2.0, np.pi / 2.0 - 1e-6)
-    footprint = (d * np.tan(half)) ** 2 * scale[0] * scale[1] / scale[2] ** 2
-    share = min(1.0, footprint / light.radius ** 2)
+    tx, ty = _cone_tans(light)
+    footprint = np.pi * d * d * tx * ty
+    area = np.pi * light.radius ** 2 if region_area is None else region_area
+    share = min(1.0, footprint / max(area, 1e-30))
     return int(min(np.ceil(n / max(share, 1e-12)), n * CONE_SAMPLES_MAX))
+
+
+def cone_region(light: Light, receivers) -> tuple | None:
+    """(x0, x1, y0, y1), metres in the light's XY plane: the part of a spot's disk through which the cone
+    lets any receiver of the box see it, or None where that is all of it or undefined (a receiver level with
+    or behind the light). A ray from disk point (x, y, 0) reaches receiver (px, py, pz) inside the cone only if
+    |px − x| ≤ −pz·tanβx and |py − y| ≤ −pz·tanβy (the cone's box); both bounds are linear in the receiver,
+    so the box's corners give their extremes."""
+    if light.kind != SPOT or light.is_delta or light.radius <= 0.0:
+        return None
+    corners = lightview.box_corners(*(np.asarray(b, float) for b in receivers))
+    local = lightview.to_local(np.linalg.inv(np.asarray(light.matrix, float)), corners)
+    depth = -local[:, 2]
+    if np.any(depth <= 0.0):
+        return None
+    tx, ty = _cone_tans(light)
+    r = float(light.radius)
+    box = (max(float(np.min(local[:, 0] - depth * tx)), -r), min(float(np.max(local[:, 0] + depth * tx)), r),
+           max(float(np.min(local[:, 1] - depth * ty)), -r), min(float(np.max(local[:, 1] + depth * ty)), r))
+    if box[0] >= box[1] or box[2] >= box[3] or box == (-r, r, -r, r):
+        return None
+    return box
+
+
+def region_disk_samples(n: int, box, radius: float, seed: int = 0) -> np.ndarray:
+    """n points uniform over the part of the disk of `radius` inside `box` (x0, x1, y0, y1): `r_sequence`
+    points of the box, those outside the disk left out (the sequence stays stratified under the cut)."""
+    lo, span = np.array([box[0], box[2]]), np.array([box[1] - box[0], box[3] - box[2]])
+    kept, total = [], 0
+    batch = max(4 * n, 256)
+    while total < n:
+        q = lo + r_sequence(batch * (len(kept) + 1), 2, seed)[batch * len(kept):] * span
+        q = q[np.einsum("ij,ij->i", q, q) <= radius * radius]
+        kept.append(q)
+        total += len(q)
+        if len(kept) > 64:
+            break
+    return np.concatenate(kept)[:n]
+
+
+def disk_share(box, radius: float, seed: int = 0) -> float:
+    """Share of `box` (x0, x1, y0, y1) inside the disk of `radius`, from 4096 `r_sequence` points."""
+    q = np.array([box[0], box[2]]) + r_sequence(4096, 2, seed) * np.array([box[1] - box[0], box[3] - box[2]])
+    return float(np.mean(np.einsum("ij,ij->i", q, q) <= radius * radius))
 
 
 def _sphere_clip(light: Light, receivers) -> tuple:
@@ -190,11 +245,24 @@ class AveragedMaps(Technique):
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
-        n_light = cone_sample_count(light, n, lc.receivers)
-        if n_light != n:
-            frame.count(cone_samples=n_light)
         ball = _fills_ball(light, lc.view, lc.split)
-        offsets = light_samples(light, n_light, s.seed, ball) if not light.is_delta else np.zeros((1, 2))
+        # A spot's samples on its disk lie where the cone lets some receiver see it, as many as keep ~n in
+        # each receiver's footprint (cone_region, cone_sample_count)
+        region = None if ball else cone_region(light, lc.receivers)
+        area = None
+        if region is not None:
+            area = (region[1] - region[0]) * (region[3] - region[2]) * disk_share(region, light.radius, s.seed)
+            if area <= 0.0:
+                region, area = None, None
+        n_light = cone_sample_count(light, n, lc.receivers, area)
+        if n_light != n or region is not None:
+            frame.count(cone_samples=n_light, cone_regions=int(region is not None))
+        if light.is_delta:
+            offsets = np.zeros((1, 2))
+        elif region is not None and len(samples_in := region_disk_samples(n_light, region, light.radius, s.seed)):
+            offsets = samples_in
+        else:
+            offsets = light_samples(light, n_light, s.seed, ball)
         sums = frame.texture((frame.width, frame.height), 4)        # zero-filled
         weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted"):
