@@ -187,6 +187,44 @@ def test_wide_sun_visibility_as_in_cycles(angle):
     assert mae < 0.015, mae
 
 
+@pytest.fixture(scope="module")
+def far_side_of_a_ball():
+    """A big flat-shaded ball on a floor under a 2.9 rad sun whose centre lies behind it as the camera sees it:
+    the visible side faces away from the sun's centre, yet most of the sun is above its faces (the fuzz class
+    of seed 8011). Nothing but the ball itself lies between those faces and the sun, so Cycles has them lit.
+    The sun object sits inside the ball: where a sun is placed does not matter to Cycles, but its map's depths
+    are measured from there."""
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.measure import reference
+    params = _one_object_scene("UV_SPHERE", (1.5, 1.5, 1.5), (0, 0, 0), _sun(2.9, (-0.03, 0.4, 0.06)),
+                               location=(0.0, 0.0, 0.0), transform="plain")
+    params["objects"][0]["smooth"] = False
+    params["floor"] = dict(half_size=4.0, rotation=[0, 0, 0], z=-1.5)     # a receiver that faces the sun
+    params["camera"].update(location=[0.6, -6.0, 1.2], target=[0.0, 0.0, 0.0])
+    scene = fuzz.build(params)
+    ref = reference.cycles_visibility(scene, samples=fuzz.CYCLES_SAMPLES, width=64, height=64)
+    return extract(bpy.context.evaluated_depsgraph_get(), scene), ref
+
+
+@pytest.mark.parametrize("technique", [pytest.param(t, marks=pytest.mark.xfail(strict=True, reason=(
+    "SPSM decides a receiver facing away from the light centre with its own plain depth test, without the "
+    "tangent-plane rule: 67 % of these pixels black"))) if t == "SPSM" else t for t in TECHNIQUES])
+def test_wide_sun_lights_the_far_side_of_a_convex_object(far_side_of_a_ball, technique):
+    """Receivers facing away from a wide sun's centre compare with no texel of its map (its tangent-plane rule);
+    a sun's orthographic depths are measured from the sun object's location and run negative for whatever
+    lies behind it, and the old "nothing counts" depth of 0 made those texels blockers: HARD, PCF, PCSS and
+    PVSM had the ball's visible side black (mae_shadow 1.0 on fuzz seed 8011)."""
+    from penumbra.engine.core.settings import RenderSettings
+    from penumbra.engine.render import pipeline
+    snap, ref = far_side_of_a_ball
+    away = ref.mask & (ref.visibility >= 0.99)
+    assert away.sum() > 400
+    v = pipeline.render(snap, RenderSettings(technique=technique)).passes["Visibility"][..., 0]
+    dark = float(np.mean(v[away] < 0.5))      # black, not a penumbra estimate off by a little
+    print(technique, "share of Cycles-lit pixels below 0.5:", dark)
+    assert dark <= 0.01
+
+
 # ----------------------------------------------------------------------------------------------------------
 # the long sweep
 # ----------------------------------------------------------------------------------------------------------

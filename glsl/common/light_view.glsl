@@ -107,13 +107,21 @@ Receiver pixel_receiver(ivec2 px) {
 }
 #endif
 
+// A receiver depth that no texel is nearer than, so nothing in the map shadows it. A perspective view's depths
+// are positive (its near plane lies in front of the eye), so 0 serves and keeps η (1/z) at +inf; a sun's
+// orthographic depths are measured from a point among the receivers and are negative for whatever lies
+// nearer the sun than that point (a wide sun's receivers facing away from its centre met such texels).
+float no_blocker_depth() {
+    return u_light_ortho == 1 ? -NO_OCCLUDER : 0.0;
+}
+
 // Depth along the map ray through `map_pos` below which a surface lies on the light's side of the receiver's
 // tangent plane, less the bias: what a texel there must be nearer than to shadow the receiver. A ray from the
 // receiver to a light point above its tangent plane stays above that plane, so nothing below it (the
 // receiver's own surface, a convex object's far side, the face behind an edge) can shadow it; following the
 // plane instead of using the centre depth also keeps a flat receiver from shadowing itself across a wide
 // kernel (receiver-plane depth bias). When the map's origin lies on or below the plane, no ray of the map
-// reaches the receiver from above it: nothing in the map counts as a blocker (0).
+// reaches the receiver from above it: nothing in the map counts as a blocker (no_blocker_depth).
 float receiver_depth_at(Receiver r, vec2 map_pos) {
     vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
     float np = dot(r.normal, r.local);
@@ -123,11 +131,11 @@ float receiver_depth_at(Receiver r, vec2 map_pos) {
     float z;
     if (u_light_ortho == 1) {
         // point (w, -z): above the plane where n.xy·w − n.z·z > np; the light is above when n.z > 0
-        if (r.normal.z <= 1e-6) return r.through_surface ? far - r.bias : 0.0;
+        if (r.normal.z <= 1e-6) return r.through_surface ? far - r.bias : no_blocker_depth();
         z = (r.normal.x * w.x + r.normal.y * w.y - np) / r.normal.z;
     } else {
         // point z·(w, −1): above the plane where z·den > np; the light (the origin) is above when np < 0
-        if (np >= 0.0) return r.through_surface ? far - r.bias : 0.0;
+        if (np >= 0.0) return r.through_surface ? far - r.bias : no_blocker_depth();
         float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
         z = den < 0.0 ? np / den : far;     // a ray that never meets the plane stays above it
     }
