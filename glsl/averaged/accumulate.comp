@@ -86,8 +86,15 @@ void main() {
         // A surface sample whose view a receiver inside the sphere is behind, or off, cannot test it: left
         // out, as counting it lit brightens every receiver the surface surrounds
         if (u_side == SIDE_INSIDE && !(in_map && r.local.z < 0.0)) continue;
-        if (in_map)
-            v = texelFetch(u_depth_maps, ivec3(t, i), 0).r < receiver_depth_at(r, vec2(t) + 0.5) ? 0.0 : 1.0;
+        // A receiver aimed into its own smooth triangle whose lifted point left the map (the lift can carry it
+        // past a window fitted to the surface points): the ray still meets its own plane right there, so it
+        // is taken as stopped, as own_surface_blocks would find it in a map that held it.
+        if (!in_map && r.through_surface && u_terminator_offset > 0.0) v = 0.0;
+        if (in_map) {
+            float stored = texelFetch(u_depth_maps, ivec3(t, i), 0).r;
+            vec2 centre = vec2(t) + 0.5;
+            v = stored < receiver_depth_at(r, centre) || own_surface_blocks(r, stored, centre) ? 0.0 : 1.0;
+        }
         sums += vec4(w * v, w, v, 1.0);
     }
     imageStore(u_sums, px, sums);
