@@ -18,7 +18,8 @@ struct Sample {
     vec4 range_tan_ortho;   // near, far, texel tan, ortho (0/1)
     ivec4 size;             // map size (xy)
     vec4 position;          // world position of the sample (perspective views)
-    vec4 emit;              // light's emission axis (world); a sun's: this sample's direction
+    vec4 emit;              // light's emission axis (world); a sun's: this sample's direction; w: the sample's
+                            // weight against a uniform one (1/pdf, techniques/averaged.py near_area_samples)
 };
 layout(std430, binding = 1) readonly buffer Samples { Sample samples[]; };
 uniform int u_count;
@@ -65,7 +66,7 @@ void main() {
             to_light = to_sample * inversesqrt(d2);
             if (u_weight_mode != WEIGHT_NONE) {
                 w = max(dot(n, to_light), 0.0) / d2;
-                if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-to_light, s.emit.xyz), 0.0);
+                if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-to_light, s.emit.xyz), 0.0) * s.emit.w;
                 // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
                 // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
                 // sphere Cycles applies no cone.
