@@ -169,24 +169,25 @@ def near_area_samples(light: Light, n: int, receivers, seed: int = 0):
     n_uniform = max(1, int(round(n * UNIFORM_SHARE)))
     share = n_uniform / n
     uniform = light_samples(light, n_uniform, seed)
+
+    def warp(q):        # [0, 1)² → the disk of radius rho_max, by the solid angle seen from c
+        rho = h * np.sqrt(np.maximum(1.0 / (1.0 - q[:, 0] * mass_max) ** 2 - 1.0, 0.0))
+        return foot + rho[:, None] * np.stack([np.cos(2 * np.pi * q[:, 1]), np.sin(2 * np.pi * q[:, 1])], axis=1)
+
     warped, start = [], 0
     while sum(len(w) for w in warped) < n - n_uniform and start < 64 * n:
-        q = r_sequence(4 * n, 2, seed + 1)[start:start + 4 * n] if start else r_sequence(4 * n, 2, seed + 1)
+        xy = warp(r_sequence(start + 4 * n, 2, seed + 1)[start:])     # the next 4n points of one sequence
         start += 4 * n
-        rho = h * np.sqrt(np.maximum(1.0 / (1.0 - q[:, 0] * mass_max) ** 2 - 1.0, 0.0))
-        xy = foot + rho[:, None] * np.stack([np.cos(2 * np.pi * q[:, 1]), np.sin(2 * np.pi * q[:, 1])], axis=1)
         warped.append(xy[_inside_shape(light, xy)])
     warped = np.concatenate(warped)[:n - n_uniform]
     if len(warped) < n - n_uniform:
         return None
-    # The warped density normalised over the light's shape, from a 256² grid of its area.
-    g = (np.arange(256) + 0.5) / 256.0 * 2.0 - 1.0
-    grid = np.stack(np.meshgrid(g * half[0], g * half[1]), axis=-1).reshape(-1, 2)
-    grid = grid[_inside_shape(light, grid)]
 
     def density(xy):
         return h / (2.0 * np.pi * (h * h + np.sum((xy - foot) ** 2, axis=1)) ** 1.5)
-    total = float(density(grid).mean()) * light.area
+    # The warped density's mass on the light's shape (its normalisation there): the disk's mass times the share
+    # of 2^16 warped points that land on the shape (a grid over the light would miss the peak of a small h).
+    total = mass_max * float(_inside_shape(light, warp(r_sequence(1 << 16, 2, seed + 2))).mean())
     offsets = np.concatenate([uniform, warped])
     pdf = share / light.area + (1.0 - share) * density(offsets) / total
     return offsets, (1.0 / light.area) / pdf       # 1 where the mixture is uniform
