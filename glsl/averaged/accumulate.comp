@@ -18,7 +18,8 @@ struct Sample {
     vec4 range_tan_ortho;   // near, far, texel tan, ortho (0/1)
     ivec4 size;             // map size (xy)
     vec4 position;          // world position of the sample (perspective views)
-    vec4 emit;              // light's emission axis (world); a sun's: this sample's direction
+    vec4 emit;              // light's emission axis (world); a sun's: this sample's direction; w: the sample's
+                            // weight against a uniform one (1/pdf, techniques/averaged.py near_area_samples)
 };
 layout(std430, binding = 1) readonly buffer Samples { Sample samples[]; };
 uniform int u_count;
@@ -87,7 +88,7 @@ void main() {
             to_light = to_sample * inversesqrt(d2);
             if (u_weight_mode != WEIGHT_NONE) {
                 w = max(dot(n, to_light), 0.0) / d2;
-                if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-to_light, s.emit.xyz), 0.0);
+                if (u_weight_mode == WEIGHT_AREA) w *= max(dot(-to_light, s.emit.xyz), 0.0) * s.emit.w;
                 // A spot's cone applies per ray: a sample whose ray to p leaves the cone carries nothing (a wide
                 // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
                 // sphere Cycles applies no cone.
@@ -109,8 +110,15 @@ void main() {
         // A surface sample whose view a receiver inside the sphere is behind, or off, cannot test it: left
         // out, as counting it lit brightens every receiver the surface surrounds
         if (u_side == SIDE_INSIDE && !(in_map && r.local.z < 0.0)) continue;
-        if (in_map)
-            v = texelFetch(u_depth_maps, ivec3(t, i), 0).r < receiver_depth_at(r, vec2(t) + 0.5) ? 0.0 : 1.0;
+        // A receiver aimed into its own smooth triangle whose lifted point left the map (the lift can carry it
+        // past a window fitted to the surface points): the ray still meets its own plane right there, so it
+        // is taken as stopped, as own_surface_blocks would find it in a map that held it.
+        if (!in_map && r.through_surface && u_terminator_offset > 0.0) v = 0.0;
+        if (in_map) {
+            float stored = texelFetch(u_depth_maps, ivec3(t, i), 0).r;
+            vec2 centre = vec2(t) + 0.5;
+            v = stored < receiver_depth_at(r, centre) || own_surface_blocks(r, stored, centre) ? 0.0 : 1.0;
+        }
         sums += vec4(w * v, w, v, 1.0);
     }
     imageStore(u_sums, px, sums);

@@ -49,6 +49,7 @@ struct Receiver {
     vec3 map;
     float bias;
     bool through_surface;
+    float own_plane;    // dot(normal, point) of the receiver's own surface (before any lift or offset)
 };
 
 Receiver make_receiver(vec3 p, vec3 ng) {
@@ -63,6 +64,7 @@ Receiver make_receiver(vec3 p, vec3 ng) {
     r.map = map_coords(r.local);
     r.bias = u_bias * texel * (0.5 + tan_t);
     r.through_surface = false;
+    r.own_plane = dot(r.normal, l);
     return r;
 }
 
@@ -84,6 +86,7 @@ Receiver make_lit_receiver(vec3 p, vec3 ng, vec3 n, float lift, vec3 to_light) {
         q += n * (lift * amount);
     }
     Receiver r = make_receiver(q, ng);
+    r.own_plane = dot(r.normal, light_local(p));
     // Only while n faces the light: a light point below both horizons carries nothing itself, and the
     // techniques that stand for a whole light by its centre must not let the receiver's own object shadow
     // the part of the light that is above them (a cube's sides, a ball's far side under a wide light).
@@ -140,6 +143,29 @@ float receiver_depth_at(Receiver r, vec2 map_pos) {
         z = den < 0.0 ? np / den : far;     // a ray that never meets the plane stays above it
     }
     return min(z, far) - r.bias;
+}
+
+// For a receiver aimed through its own smooth triangle (through_surface) while the terminator offset is on:
+// Cycles then does not skip that triangle (shadow_ray_offset: "we're meant to hit this surface"), so the ray
+// from the lifted point stops where it crosses the receiver's own plane, if the triangle is there. The map
+// tells: the texel's stored depth `stored` at or in front of where the texel's ray meets that plane (within
+// the slope-scaled bias) means the receiver's surface, or something nearer, is in the way. A ray that crosses
+// the plane off the triangle (grazing, near an edge) finds the map farther than the plane: not stopped here.
+bool own_surface_blocks(Receiver r, float stored, vec2 map_pos) {
+    if (!r.through_surface || u_terminator_offset <= 0.0) return false;
+    vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
+    float z;
+    if (u_light_ortho == 1) {
+        // point (w, -z) on the plane: n.xy·w − n.z·z = own_plane
+        if (abs(r.normal.z) <= 1e-6) return false;
+        z = (r.normal.x * w.x + r.normal.y * w.y - r.own_plane) / r.normal.z;
+    } else {
+        // point z·(w, −1) on the plane: z·den = own_plane
+        float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
+        if (abs(den) <= 1e-12) return false;
+        z = r.own_plane / den;
+    }
+    return z > 0.0 && stored <= z + r.bias;
 }
 
 // Hard comparison against one texel: 1 lit, 0 shadowed. Outside the map counts as lit.
