@@ -86,6 +86,8 @@ float g_depth;                    // receiver depth less its bias
 int g_visited;
 vec2 g_light_e;                   // half extent of the light filter alone (texels)
 vec2 g_pad;                       // half extent of the pixel footprint on the map (texels), 0 without AA
+float g_blocker_depth;            // the kernel's blocker plane (z-average), set by soft_kernel
+vec3 g_n;                         // shading normal in the view's frame (a sun's weights)
 
 // Receiver depth to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
 // point over the cell (its nearest corner), less the bias, so that the receiver never hides a blocker that a
@@ -273,6 +275,9 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
     vec2 to_light = u_light_half / box;
     float zr = max(g_r.map.z, 1e-30);
     vec2 foot = g_r.local.xy;
+    // A sun's view: a kernel offset through the blocker plane is the tangent of the direction to the sun
+    // (metres per texel over the blocker's height above the receiver), kept when the kernel was clamped.
+    float tan_per_texel = u_texel_tan / max(g_depth - g_blocker_depth, 1e-30);
 #endif
     // One flat loop over (column, row, sub-sample): a column's cells are at most `rows`, a cell has
     // u_sub² depth tests past level 0; with CHUNKED only this dispatch's share of that numbering.
@@ -313,6 +318,16 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
                 vec2 qc = (0.5 * (r.xy + r.zw) - foot) / zr;
                 float kw = 1.0 / (1.0 + dot(qc, qc));
                 w *= kw * kw;
+            } else if (inside) {
+                // A sun: its directions are uniform in solid angle, which the map's tangent plane holds with
+                // density cos³θ (dΩ = cos³θ dA for a unit-height plane), each carrying the receiver's
+                // cosine. Uniform area weights overcount the directions near the sun's rim by 1/cos³θ, and
+                // past the receiver's horizon count what carries no light at all: a 180° sun's kernel spans
+                // the whole map, and was an even average of it.
+                vec2 tq = (vec2(0.5 * (xa + xb), 0.5 * (max(float(j) * s, ya) + min(float(j + 1) * s, yb))) - c)
+                          * tan_per_texel;
+                float q2 = 1.0 + dot(tq, tq);
+                w *= max(dot(g_n, vec3(tq, 1.0)), 0.0) / (q2 * q2);
             }
 #endif
             if (inside && q == 0) {
@@ -365,6 +380,7 @@ float occluded_share(vec2 c, mat2 h, int l) {
 // texels, from the blockers' mean depth; sets g_light_e.
 mat2 soft_kernel(float z_avg, float weight, mat2 phi) {
     vec2 e = weight > 0.0 ? filter_half_texels(z_avg, g_depth) : vec2(0.0);
+    g_blocker_depth = z_avg;
     vec2 span = u_virtual_hi - u_virtual_lo;
     e = min(e, vec2(max(span.x, span.y)));     // α → ∞ (occluder at the light)
     g_light_e = e;
@@ -445,6 +461,7 @@ void main() {
     if (pixel_lit(px)) {
         vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
         g_r = pixel_receiver(px);
+        g_n = view_direction(texelFetch(g_normal, px, 0).xyz);
         g_depth = g_r.map.z - g_r.bias;
         mat2 phi = mat2(0.0);
         if (u_aa == 1 || u_rho != 0 || MODE == 1) phi = pixel_footprint(px, p, ng);
