@@ -89,12 +89,14 @@ vec2 g_pad;                       // half extent of the pixel footprint on the m
 float g_blocker_depth;            // the kernel's blocker plane (z-average), set by soft_kernel
 vec3 g_n;                         // shading normal in the view's frame (a sun's weights)
 
-// Receiver depth to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
-// point over the cell (its nearest corner), less the bias, so that the receiver never hides a blocker that a
-// finer level would see there.
-float depth_for_cell(vec2 lo, vec2 hi) {
-    return min(min(receiver_depth_at(g_r, lo), receiver_depth_at(g_r, hi)),
-               min(receiver_depth_at(g_r, vec2(lo.x, hi.y)), receiver_depth_at(g_r, vec2(hi.x, lo.y))));
+// Receiver depths to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
+// and farthest points over the cell (its corners), less the bias. Nearer than the nearest, the cell's minimum
+// is a blocker wherever in the cell it lies; nearer than the farthest only, it may be one (or the receiver's
+// own surface, where the plane runs steeply through the cell: a grazing receiver).
+vec2 depth_for_cell(vec2 lo, vec2 hi) {
+    vec4 d = vec4(receiver_depth_at(g_r, lo), receiver_depth_at(g_r, hi),
+                  receiver_depth_at(g_r, vec2(lo.x, hi.y)), receiver_depth_at(g_r, vec2(hi.x, lo.y)));
+    return vec2(min(min(d.x, d.y), min(d.z, d.w)), max(max(d.x, d.y), max(d.z, d.w)));
 }
 
 // Cells of level l of a pyramid (llvmpipe's textureSize(sampler, lod) answers level 0's size here).
@@ -130,8 +132,13 @@ vec2 filter_half_texels(float zo, float zy) {
 // counts every texel of the box nearer than the receiver; we keep only cells that can hide part of the light,
 // i.e. that reach into the light–receiver pyramid at their own depth (c ± α(z_min)·h): a wall beside the
 // receiver or geometry at the map's edge is then not averaged in. Each cell is weighted by its overlap with
-// that pyramid's section (below), so the mean, and with it the filter size, moves smoothly. The cell's minimum
-// depth makes the test conservative. Returns (mean depth, blocker weight); weight 0: no blocker.
+// that pyramid's section (below), so the mean, and with it the filter size, moves smoothly. Cells that are
+// blockers wherever their minimum lies make the mean; when there are none, the cells that may be blockers
+// (depth_for_cell) make it instead: a coarse cell across a receiver turned from the light spans more depth
+// than the gap to an occluder just in front of it, and skipping such a pixel as fully lit lost that shadow
+// (fuzz seed 9: 0.32 → 0.16; tests/test_pvsm.py close_occluder_before_a_slope). The filter's per-texel tests
+// (the plane at each texel) then find the occluder or reject the receiver's own surface.
+// Returns (mean depth, blocker weight); weight 0: no blocker.
 // With anti-aliasing the pixel's footprint (half extent `pad`) widens both, so that a pixel whose footprint
 // reaches a shadow is not skipped as fully lit.
 vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
@@ -149,12 +156,13 @@ vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
     ivec2 ci = ivec2(floor(c / s));
     i0 = max(i0, min(ci - PVSM_SEARCH_CELLS / 2, i1 - PVSM_SEARCH_CELLS + 1));
     i1 = min(i1, i0 + PVSM_SEARCH_CELLS - 1);
-    float sum = 0.0, weight = 0.0;
+    float sum = 0.0, weight = 0.0, maybe_sum = 0.0, maybe_weight = 0.0;
     for (int j = i0.y; j <= i1.y; ++j) {
         for (int i = i0.x; i <= i1.x; ++i) {
             ++g_visited;
             float zmin = search_min(l, ivec2(i, j));
-            if (!(zmin < depth_for_cell(vec2(i, j) * s / u_search_scale, vec2(i + 1, j + 1) * s / u_search_scale)))
+            vec2 dc = depth_for_cell(vec2(i, j) * s / u_search_scale, vec2(i + 1, j + 1) * s / u_search_scale);
+            if (!(zmin < dc.y))
                 continue;
             vec2 reach = min(max(filter_half_texels(zmin, g_depth) * u_search_scale, vec2(0.5)) + pad, e);
             vec2 w = min(vec2(i + 1, j + 1) * s, c + reach) - max(vec2(i, j) * s, c - reach);
@@ -163,12 +171,18 @@ vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
                 // hides: a layer that hides all of it counts 1 whatever its depth (a plain texel count would
                 // favour blockers near the light, whose sections are wider, and over-blur).
                 float area = max(w.x * w.y / (4.0 * reach.x * reach.y), 1e-12);
-                sum += area * zmin;
-                weight += area;
+                if (zmin < dc.x) {
+                    sum += area * zmin;
+                    weight += area;
+                } else {
+                    maybe_sum += area * zmin;
+                    maybe_weight += area;
+                }
             }
         }
     }
-    return vec2(weight > 0.0 ? sum / weight : 0.0, weight);
+    if (weight > 0.0) return vec2(sum / weight, weight);
+    return vec2(maybe_weight > 0.0 ? maybe_sum / maybe_weight : 0.0, maybe_weight);
 }
 
 // ---- §4.2: pixel footprint -----------------------------------------------------------------------------
