@@ -76,14 +76,8 @@ def test_generator_covers_every_primitive_light_and_transform():
 FIXED_SEEDS = (0, 9, 15, 19)
 # (technique, seed) pairs that fail today for a known reason: strict, so the test turns red once fixed.
 KNOWN_FAILURES: dict = {
-    ("SPSM", 9): "SPSM keeps its own terminator rule (it decides as HARD's slope bias does where the triangle "
-                 "faces away) instead of the lifted point, which its sub-texel depth tests cannot use: 0.263 "
-                 "against a bound of 0.261 at 64², over ~100 shadow pixels",
     ("SSM", 9): "SSM does not model self-shadowing (the paper's occluder/receiver split): the monkey's shadow on "
-                "itself is missing, 0.49 at 64²",
-    ("PVSM", 9): "PVSM 0.32 at 64² (0.34 before the shadow-terminator lift, which took HARD, PCSS and REFERENCE "
-                 "under their bounds): scattered pixels at one object's shadow edge, not the loop limit "
-                 "(the same with the filter split over 14 dispatches); not analysed further"}
+                "itself is missing, 0.49 at 64²"}
 
 
 @pytest.fixture(scope="module")

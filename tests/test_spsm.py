@@ -205,6 +205,31 @@ def test_near_plane_clipping_keeps_the_visible_part():
     assert np.all(covered[must]) and np.all(may[covered])
 
 
+@pytest.mark.parametrize("tilt", [0.0, 0.6])
+def test_stored_depth_stays_exact_with_a_tiny_near_plane(tilt):
+    """A caster reaching the light plane sets a perspective view's near plane to 1e-5 of the scene (engine/
+    core/lightview.py). η = 1 − window depth is then ~ n/z and float32 keeps ~0.05 % of it: here z̃ came out
+    2.9 mm off at 7.4 m; in fuzz 7404 (near 2e-4 m, far 18 m) every triangle's plane came out 1.4 cm nearer,
+    beyond its 4 mm bias, and every receiver shadowed itself (SPSM mae_shadow 1.0). The geometry stage now
+    takes η from the linear depth (0.14 mm here, under the 16-bit step of 0.3 mm) and the depth test runs on
+    linear depth."""
+    window = (-0.1, 0.1, -0.1, 0.1)
+    near, far = 2e-4, 20.0
+    view = LightView(np.eye(4), lightview.frustum(window, near, far), MAP, MAP, near, far, False, window)
+    z = 7.4
+    tri = np.array([[-0.09 * z, -0.09 * z, -z], [0.09 * z, -0.09 * z, -z - tilt], [0.0, 0.09 * z, -z - tilt]])
+    depth, texels = _render_map(tri[None], view)
+    j, i = MAP // 2, MAP // 2                               # a texel well inside
+    centre = (np.array([i + 0.5, j + 0.5]) / MAP * 2.0 - 1.0) * 0.1     # tangents of the texel centre
+    # The plane's depth along the ray through the texel centre: n·(d·(x, y, −1)) = n·p0.
+    n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+    z_c = float(n @ tri[0] / (n @ np.array([centre[0], centre[1], -1.0])))
+    z_tilde = (texels[j, i, 3] >> 16) / 65535.0 * (far - near) + near
+    print("z_c", z_c, "stored", z_tilde, "min depth", depth[j, i])
+    assert z_tilde == pytest.approx(z_c, abs=1e-3)
+    assert z_c - 0.05 <= depth[j, i] <= z_c + 1e-3           # the plane's nearest corner value
+
+
 # ---- pattern table (§4.2, derived) -------------------------------------------------------------------------
 
 from penumbra.engine.techniques import spsm  # noqa: E402
@@ -331,3 +356,89 @@ def test_study_edge_pixels_and_score():
     s = study.score(v, ref, np.ones_like(ref, bool))
     assert s["mismatched"] == 1 and s["false_shadow"] == 1 and s["boundary_rate"] == pytest.approx(1 / 12)
     assert s["recall"] == 1.0
+
+
+def wide_sun_ball(resolution, angle):
+    """A smooth ball (0.8 m) resting on the floor under a sun `angle` radians wide at 50° elevation, seen
+    from the side away from the sun: the ball's far half faces away from the sun's centre yet is lit by the
+    rest of its disk, and its shadow is a wide penumbra (fuzz seeds 6032 and 5016's class). Reuses the
+    built-in scenes' helpers; returns the bpy scene."""
+    import math
+
+    import bpy
+    from penumbra.engine.measure import scenes
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    scenes._setup_scene(sc, resolution)
+    scenes._add_ground(sc)
+    occ = scenes.diffuse_material("OccluderMaterial", scenes.OCCLUDER_RGB)
+    ball = scenes._link(sc, bpy.data.objects.new("Ball", scenes._uv_sphere_mesh("Ball", 0.8, occ)))
+    ball.location = (0.0, 0.0, 0.8)
+    elevation = math.radians(50.0)
+    scenes._add_sun(sc, (math.cos(elevation), 0.0, math.sin(elevation)), angle)
+    scenes._add_camera(sc, (-4.0, -2.5, 2.5), (0.3, 0.0, 0.5), lens=35)
+    bpy.context.view_layer.update()
+    return sc
+
+
+def lowpoly_ball_terminator(resolution):
+    """A smooth low-poly ball (10 × 6 segments, 0.8 m) on the floor, a 0.5 m square light 18° above its
+    equator, seen side-on: its shadow terminator runs across the camera's view (fuzz seed 9's class)."""
+    import math
+
+    import bpy
+    from penumbra.engine.measure import scenes
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    scenes._setup_scene(sc, resolution)
+    scenes._add_ground(sc)
+    occ = scenes.diffuse_material("OccluderMaterial", scenes.OCCLUDER_RGB)
+    ball = scenes._link(sc, bpy.data.objects.new("Ball", scenes._uv_sphere_mesh("Ball", 0.8, occ, u=10, v=6)))
+    ball.location = (0.0, 0.0, 0.8)
+    e = math.radians(18.0)
+    scenes._add_area_light(sc, (4.0 * math.cos(e), 0.0, 0.8 + 4.0 * math.sin(e)), (0.0, 0.0, 0.8), 0.5)
+    scenes._add_camera(sc, (0.0, -3.5, 1.6), (0.0, 0.0, 0.7), lens=35)
+    bpy.context.view_layer.update()
+    return sc
+
+
+def _spsm_and_hard_against_cycles(sc):
+    """mae_shadow of HARD and SPSM against Cycles (256 spp) and the share of the pixels Cycles sees lit
+    (V ≥ 0.95) that SPSM puts below 0.5."""
+    bpy = pytest.importorskip("bpy")
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.measure import reference
+    ref = reference.cycles_visibility(sc, samples=256)
+    snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
+    lit = ref.mask & (ref.visibility >= 0.95)
+    assert lit.sum() > 1000
+    mae = {}
+    for tech in ("HARD", "SPSM"):
+        v = pipeline.render(snap, RenderSettings(technique=tech)).passes["Visibility"][..., 0]
+        mae[tech] = metrics.compare(v, ref.visibility, ref.mask)["mae_shadow"]
+    dark = float(np.mean(v[lit] < 0.5))
+    print(mae, "SPSM: share of Cycles-lit pixels below 0.5:", dark)
+    return mae, dark
+
+
+def test_spsm_lights_receivers_facing_away_from_a_wide_suns_centre():
+    """A 2.5 rad sun on a ball (64²): the ball's far half faces away from the sun's centre and Cycles has it
+    lit. SPSM decided those pixels against the hard map without HARD's tangent-plane rule, so the ball
+    shadowed itself: 6.6 % of the pixels Cycles sees lit came out below 0.5 and mae_shadow was 0.207 against
+    HARD's 0.138 (fuzz 6032: 0.45 against a bound of 0.25). SPSM now decides every pixel whose triangle faces
+    away from the light centre as HARD does."""
+    pytest.importorskip("bpy")
+    mae, dark = _spsm_and_hard_against_cycles(wide_sun_ball((64, 64), 2.5))
+    assert dark <= 0.005
+    assert mae["SPSM"] <= mae["HARD"] + 0.005
+
+
+def test_spsm_terminator_starts_where_cycles_shadow_ray_does():
+    """The low-poly ball's terminator (64²): SPSM compared the unlifted surface point with the hard map there,
+    a dark streak along the terminator that Cycles' lifted shadow rays do not see (0.6 % of the lit pixels
+    below 0.5, mae_shadow 0.074 against HARD's 0.047; fuzz seed 9: 0.263 against a bound of 0.261). It now
+    takes HARD's lifted receiver (common/light_view.glsl pixel_receiver) there, position and depth alike."""
+    pytest.importorskip("bpy")
+    mae, dark = _spsm_and_hard_against_cycles(lowpoly_ball_terminator((64, 64)))
+    assert dark <= 0.001
+    assert mae["SPSM"] <= mae["HARD"] + 0.005

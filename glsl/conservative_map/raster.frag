@@ -95,8 +95,11 @@ void main() {
     // Nearest value of the plane over the texel (the corner the gradient points to), never nearer than
     // the triangle itself reaches (an edge-on triangle: its nearest vertex).
     float eta_cons = min(eta_c + 0.5 * (abs(grad.x) + abs(grad.y)), eta_top);
-    gl_FragDepth = clamp(1.0 - eta_cons, 0.0, 1.0);
     f_min_depth = depth_from_eta(clamp(eta_cons, 0.0, 1.0));
+    // The depth test on linear depth, not 1 − η: near a tiny near plane 1 − η keeps 0.2 % of the depth
+    // (raster.geom eta_of), too coarse to tell a surface from one a centimetre behind it.
+    gl_FragDepth = clamp((f_min_depth - u_light_depth_range.x) / (u_light_depth_range.y - u_light_depth_range.x),
+                         0.0, 1.0);
 
     float z_c = depth_from_eta(eta_c);
     vec2 pa = pull_in(a, b, c), pb = pull_in(b, c, a), pc = pull_in(c, a, b);

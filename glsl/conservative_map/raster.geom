@@ -22,10 +22,15 @@ vec2 to_texels(vec4 clip) {
     return (clip.xy / clip.w * 0.5 + 0.5) * vec2(u_map_size);
 }
 
-// Window depth of a clip-space point: n/z·… for a perspective view, linear for an ortho one; both are
-// affine in map space. η = 1 − window depth grows towards the light (0 at the far plane, 1 at the near).
+// η = 1 − window depth grows towards the light (0 at the far plane, 1 at the near), affine in map space. A
+// perspective view takes it from the linear depth (clip.w) itself: 1 − window depth cancels catastrophically
+// when the near plane is tiny (casters reaching the light plane set it to 1e-5 of the scene), where η ~ n/z
+// and float32's step near 1 is a sizeable share of η: in fuzz 7404 every plane came out 1.4 cm nearer at
+// 7 m, beyond a 4 mm bias, and each receiver shadowed itself (tests/test_spsm.py). An ortho view's η is
+// linear in its depth: no cancellation.
 float eta_of(vec4 clip) {
-    return 1.0 - (clip.z / clip.w * 0.5 + 0.5);
+    if (u_light_ortho == 1) return 1.0 - (clip.z / clip.w * 0.5 + 0.5);
+    return eta_from_depth(clip.w);
 }
 
 vec2 t_grad;

@@ -86,13 +86,17 @@ float g_depth;                    // receiver depth less its bias
 int g_visited;
 vec2 g_light_e;                   // half extent of the light filter alone (texels)
 vec2 g_pad;                       // half extent of the pixel footprint on the map (texels), 0 without AA
+float g_blocker_depth;            // the kernel's blocker plane (z-average), set by soft_kernel
+vec3 g_n;                         // shading normal in the view's frame (a sun's weights)
 
-// Receiver depth to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
-// point over the cell (its nearest corner), less the bias, so that the receiver never hides a blocker that a
-// finer level would see there.
-float depth_for_cell(vec2 lo, vec2 hi) {
-    return min(min(receiver_depth_at(g_r, lo), receiver_depth_at(g_r, hi)),
-               min(receiver_depth_at(g_r, vec2(lo.x, hi.y)), receiver_depth_at(g_r, vec2(hi.x, lo.y))));
+// Receiver depths to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
+// and farthest points over the cell (its corners), less the bias. Nearer than the nearest, the cell's minimum
+// is a blocker wherever in the cell it lies; nearer than the farthest only, it may be one (or the receiver's
+// own surface, where the plane runs steeply through the cell: a grazing receiver).
+vec2 depth_for_cell(vec2 lo, vec2 hi) {
+    vec4 d = vec4(receiver_depth_at(g_r, lo), receiver_depth_at(g_r, hi),
+                  receiver_depth_at(g_r, vec2(lo.x, hi.y)), receiver_depth_at(g_r, vec2(hi.x, lo.y)));
+    return vec2(min(min(d.x, d.y), min(d.z, d.w)), max(max(d.x, d.y), max(d.z, d.w)));
 }
 
 // Cells of level l of a pyramid (llvmpipe's textureSize(sampler, lod) answers level 0's size here).
@@ -128,8 +132,13 @@ vec2 filter_half_texels(float zo, float zy) {
 // counts every texel of the box nearer than the receiver; we keep only cells that can hide part of the light,
 // i.e. that reach into the light–receiver pyramid at their own depth (c ± α(z_min)·h): a wall beside the
 // receiver or geometry at the map's edge is then not averaged in. Each cell is weighted by its overlap with
-// that pyramid's section (below), so the mean, and with it the filter size, moves smoothly. The cell's minimum
-// depth makes the test conservative. Returns (mean depth, blocker weight); weight 0: no blocker.
+// that pyramid's section (below), so the mean, and with it the filter size, moves smoothly. Cells that are
+// blockers wherever their minimum lies make the mean; when there are none, the cells that may be blockers
+// (depth_for_cell) make it instead: a coarse cell across a receiver turned from the light spans more depth
+// than the gap to an occluder just in front of it, and skipping such a pixel as fully lit lost that shadow
+// (fuzz seed 9: 0.32 → 0.16; tests/test_pvsm.py close_occluder_before_a_slope). The filter's per-texel tests
+// (the plane at each texel) then find the occluder or reject the receiver's own surface.
+// Returns (mean depth, blocker weight); weight 0: no blocker.
 // With anti-aliasing the pixel's footprint (half extent `pad`) widens both, so that a pixel whose footprint
 // reaches a shadow is not skipped as fully lit.
 vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
@@ -147,12 +156,13 @@ vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
     ivec2 ci = ivec2(floor(c / s));
     i0 = max(i0, min(ci - PVSM_SEARCH_CELLS / 2, i1 - PVSM_SEARCH_CELLS + 1));
     i1 = min(i1, i0 + PVSM_SEARCH_CELLS - 1);
-    float sum = 0.0, weight = 0.0;
+    float sum = 0.0, weight = 0.0, maybe_sum = 0.0, maybe_weight = 0.0;
     for (int j = i0.y; j <= i1.y; ++j) {
         for (int i = i0.x; i <= i1.x; ++i) {
             ++g_visited;
             float zmin = search_min(l, ivec2(i, j));
-            if (!(zmin < depth_for_cell(vec2(i, j) * s / u_search_scale, vec2(i + 1, j + 1) * s / u_search_scale)))
+            vec2 dc = depth_for_cell(vec2(i, j) * s / u_search_scale, vec2(i + 1, j + 1) * s / u_search_scale);
+            if (!(zmin < dc.y))
                 continue;
             vec2 reach = min(max(filter_half_texels(zmin, g_depth) * u_search_scale, vec2(0.5)) + pad, e);
             vec2 w = min(vec2(i + 1, j + 1) * s, c + reach) - max(vec2(i, j) * s, c - reach);
@@ -161,12 +171,18 @@ vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
                 // hides: a layer that hides all of it counts 1 whatever its depth (a plain texel count would
                 // favour blockers near the light, whose sections are wider, and over-blur).
                 float area = max(w.x * w.y / (4.0 * reach.x * reach.y), 1e-12);
-                sum += area * zmin;
-                weight += area;
+                if (zmin < dc.x) {
+                    sum += area * zmin;
+                    weight += area;
+                } else {
+                    maybe_sum += area * zmin;
+                    maybe_weight += area;
+                }
             }
         }
     }
-    return vec2(weight > 0.0 ? sum / weight : 0.0, weight);
+    if (weight > 0.0) return vec2(sum / weight, weight);
+    return vec2(maybe_weight > 0.0 ? maybe_sum / maybe_weight : 0.0, maybe_weight);
 }
 
 // ---- §4.2: pixel footprint -----------------------------------------------------------------------------
@@ -273,6 +289,9 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
     vec2 to_light = u_light_half / box;
     float zr = max(g_r.map.z, 1e-30);
     vec2 foot = g_r.local.xy;
+    // A sun's view: a kernel offset through the blocker plane is the tangent of the direction to the sun
+    // (metres per texel over the blocker's height above the receiver), kept when the kernel was clamped.
+    float tan_per_texel = u_texel_tan / max(g_depth - g_blocker_depth, 1e-30);
 #endif
     // One flat loop over (column, row, sub-sample): a column's cells are at most `rows`, a cell has
     // u_sub² depth tests past level 0; with CHUNKED only this dispatch's share of that numbering.
@@ -313,6 +332,16 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
                 vec2 qc = (0.5 * (r.xy + r.zw) - foot) / zr;
                 float kw = 1.0 / (1.0 + dot(qc, qc));
                 w *= kw * kw;
+            } else if (inside) {
+                // A sun: its directions are uniform in solid angle, which the map's tangent plane holds with
+                // density cos³θ (dΩ = cos³θ dA for a unit-height plane), each carrying the receiver's
+                // cosine. Uniform area weights overcount the directions near the sun's rim by 1/cos³θ, and
+                // past the receiver's horizon count what carries no light at all: a 180° sun's kernel spans
+                // the whole map, and was an even average of it.
+                vec2 tq = (vec2(0.5 * (xa + xb), 0.5 * (max(float(j) * s, ya) + min(float(j + 1) * s, yb))) - c)
+                          * tan_per_texel;
+                float q2 = 1.0 + dot(tq, tq);
+                w *= max(dot(g_n, vec3(tq, 1.0)), 0.0) / (q2 * q2);
             }
 #endif
             if (inside && q == 0) {
@@ -365,6 +394,7 @@ float occluded_share(vec2 c, mat2 h, int l) {
 // texels, from the blockers' mean depth; sets g_light_e.
 mat2 soft_kernel(float z_avg, float weight, mat2 phi) {
     vec2 e = weight > 0.0 ? filter_half_texels(z_avg, g_depth) : vec2(0.0);
+    g_blocker_depth = z_avg;
     vec2 span = u_virtual_hi - u_virtual_lo;
     e = min(e, vec2(max(span.x, span.y)));     // α → ∞ (occluder at the light)
     g_light_e = e;
@@ -445,6 +475,7 @@ void main() {
     if (pixel_lit(px)) {
         vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
         g_r = pixel_receiver(px);
+        g_n = view_direction(texelFetch(g_normal, px, 0).xyz);
         g_depth = g_r.map.z - g_r.bias;
         mat2 phi = mat2(0.0);
         if (u_aa == 1 || u_rho != 0 || MODE == 1) phi = pixel_footprint(px, p, ng);

@@ -192,6 +192,15 @@ bool beyond_phi(vec2 td) {
     return td.y > phi;
 }
 
+// HARD's decision (glsl/hard/visibility.comp) where the sub-texel tests cannot decide: the hard map against
+// the Cycles-style receiver (the terminator lift of g_geometric.w, position and depth lifted together) and its
+// tangent-plane rule, so that a receiver facing away from the light centre is not shadowed by its own object
+// (a wide sun or a large light still lights it) and a terminator pixel starts where Cycles' shadow ray does.
+float hard_decision(ivec2 px) {
+    Receiver h = pixel_receiver(px);
+    return map_lit_plane(u_depth_map, ivec2(floor(h.map.xy)), h);
+}
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
@@ -204,7 +213,6 @@ void main() {
         // The normal offset keeps its depth, not its sideways shift: at sub-texel precision that shift
         // (δ·tanθ on the receiver) moves outer shadow edges outwards.
         vec2 p = map_coords(light_local(surface)).xy;
-        vec2 hard_pos = r.map.xy;
         r.map.xy = p;
         ivec2 k = ivec2(floor(p));
         float eta_front = eta_from_depth(r.map.z - r.bias);     // nearer than this occludes
@@ -216,14 +224,15 @@ void main() {
         if (any(lessThan(k, ivec2(0))) || any(greaterThanEqual(k, u_map_size)) || !tc.valid) {
             v = 1.0;                                        // nothing touches the texel: lit
         } else if (dot(r.normal, to_light) < GRAZING_COS) {
-            // The shadow terminator of a smooth mesh: the shading normal faces the light (it is lit) but
-            // the triangle itself faces away, so its own mesh shadows it geometrically. Cycles lifts such
-            // shadow rays off the flat triangle (its shadow-terminator geometry offset) and HARD's slope
-            // bias hides the same self-shadow; sub-texel tests would not. Here SPSM decides as HARD does,
-            // against the hard depth map. So are receivers within 3° of edge-on (city's walls at 89.8°):
+            // The triangle faces away from the light centre. Either the shadow terminator of a smooth mesh
+            // (the shading normal faces the light, so its own mesh shadows it geometrically; Cycles lifts
+            // such shadow rays off the flat triangle, its shadow-terminator geometry offset) or a receiver
+            // lit only by the rest of a wide light (a sun's far side under a 2.5 rad sun), which its own
+            // object must not shadow. Sub-texel tests against the surface point would shadow both; here
+            // SPSM decides exactly as HARD does (hard_decision). So are receivers within 3° of edge-on (city's walls at 89.8°):
             // there one texel spans tens of texel-widths of depth and the sub-texel tests are
             // ill-conditioned, while HARD's capped slope bias still holds.
-            v = map_lit(u_depth_map, ivec2(floor(hard_pos)), r.map.z - r.bias);
+            v = hard_decision(px);
         } else {
             float e = eta_at(tc, p);
             if (e >= eta_back && e <= eta_front) {
@@ -269,7 +278,7 @@ void main() {
                             // triangle at p was not kept (the paper's case: shadowed) or a gap in a mesh of
                             // occluders finer than a texel (the paper's "shadow fusion", §6.4). The hard
                             // map's sample at p tells them apart as well as anything here can.
-                            v = map_lit(u_depth_map, ivec2(floor(hard_pos)), r.map.z - r.bias);
+                            v = hard_decision(px);
                         } else if (ring == 0u && !g_front[0]) {
                             v = 1.0;                        // nothing in front anywhere around
                         } else {
