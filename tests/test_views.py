@@ -41,6 +41,42 @@ def test_a_view_that_holds_every_point_is_not_split():
     assert lightview.split_faces(view, pts) is None
 
 
+def test_a_face_fits_the_points_it_owns_not_their_box():
+    """A face's points lie within 45° of its axis, but the far corners of their box can lie far outside that
+    pyramid (or behind the eye), which widened the face's window up to the tangent limit and coarsened its
+    texels. Fitted to the points themselves, every face's window stays within the pyramid (plus the margin)."""
+    rng = np.random.default_rng(5)
+    light = _light()
+    pts = rng.uniform(-3, 3, (4000, 3))
+    pts[:, 2] = rng.uniform(0.0, 4.0, 4000)
+    receivers = (pts.min(axis=0), pts.max(axis=0))
+    view = lightview.fit(light, receivers, receivers, 256)
+    faces = lightview.split_faces(view, pts)
+    wide = 0
+    for rotation, mask in faces[1:]:
+        sub = pts[mask]
+        box = (sub.min(axis=0), sub.max(axis=0))
+        tight = lightview.fit(light, box, receivers, 256, frame=view.view, face=rotation, receiver_points=sub)
+        loose = lightview.fit(light, box, receivers, 256, frame=view.view, face=rotation)
+        assert not lightview.outside_view(tight, sub).any()
+        assert np.abs(tight.window).max() <= 1.0 * (1.0 + 2 * 0.02) + 1e-9, tight.window
+        wide += np.abs(loose.window).max() > 1.1
+    assert wide, "the box's corners must reach outside some face's pyramid, or this test shows nothing"
+
+
+def test_a_view_with_nothing_to_shadow_is_not_clamped():
+    """Receivers that no caster's window reaches need no map. With receivers and casters both around the
+    light's plane, on opposite sides of it, both windows are unbounded across and the empty part they share
+    kept an infinite bound: the view counted as clamped, split into faces and warned that pixels fell outside
+    its views (fuzz seed 7407). Casters that do reach over the receivers still clamp it."""
+    light = _light(size=0.0)                                            # looking down -Z from z = 2
+    receivers = (np.array([2.0, -0.5, 0.0]), np.array([3.0, 0.5, 3.0]))
+    apart = (np.array([-3.0, -0.5, 1.5]), np.array([-2.0, 0.5, 2.5]))
+    over = (np.array([-3.0, -0.5, 1.5]), np.array([3.0, 0.5, 2.5]))
+    assert not lightview.fit(light, receivers, apart, 256).clamped
+    assert lightview.fit(light, receivers, over, 256).clamped
+
+
 def room_with_light():
     """An area light in a closed room with a block beside it under the ceiling: the walls next to the light
     are lit at grazing angles and the block shadows a wall far off the light's axis."""

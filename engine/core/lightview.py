@@ -92,7 +92,8 @@ def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[np.ndarray, np.ndarray] | None,
         map_size: int, *, origin_local: np.ndarray | None = None, margin: float = 0.02,
-        frame: np.ndarray | None = None, face: np.ndarray | None = None) -> LightView:
+        frame: np.ndarray | None = None, face: np.ndarray | None = None,
+        receiver_points: np.ndarray | None = None) -> LightView:
     """Fit a light view to the receiver bounds (world AABB lo, hi) and the caster bounds.
 
     The window is the part of the receivers a caster can shadow (the casters' window widened by how far the
@@ -100,7 +101,8 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     are measured in window units: tangents from the eye (perspective) or metres (sun). `origin_local` moves
     the eye to a point of the light (a REFERENCE sample); the frame keeps its axes and the light has no
     extent left around that eye. `frame` (the light's world→local matrix) and `face` (a rotation from it, see
-    `split_faces`) make the view one face of a light seen through several views.
+    `split_faces`) make the view one face of a light seen through several views. `receiver_points` (world,
+    N × 3), the receivers themselves where the caller has them, replace their box's corners.
     """
     r_lo, r_hi = (np.asarray(v, float) for v in receivers)
     world_to_light = light_frame(light, (r_lo + r_hi) / 2.0) if frame is None else np.asarray(frame, float)
@@ -120,7 +122,9 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     if casters is None:
         casters = receivers
     c_lo, c_hi = (np.asarray(v, float) for v in casters)
-    rec = to_local(world_to_local, box_corners(r_lo, r_hi))
+    # The receivers' own points, where known, bound the window tighter than their box: a cube face's points
+    # lie within its 45° pyramid, while the far corners of their box can lie far outside it, or behind the eye.
+    rec = to_local(world_to_local, box_corners(r_lo, r_hi) if receiver_points is None else receiver_points)
     cas = to_local(world_to_local, box_corners(c_lo, c_hi))
     extent = max(float(np.linalg.norm(r_hi - r_lo)), float(np.linalg.norm(c_hi - c_lo)), 1e-9)
     is_sun = light.kind == SUN
@@ -143,7 +147,10 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     window = _union(shadowable, occluders)
     if not np.all(np.isfinite(window)) or window[1] <= window[0] or window[3] <= window[2]:
         window = _intersect(_union(win_r, win_c), (-limit, limit, -limit, limit))
-    clamped = bool(np.abs(np.asarray(shadowable)).max() > limit)
+    # Only receivers a caster can shadow need the map: with none (an empty window), a pixel left outside it
+    # is lit for certain, and the view is not clamped however wide the fallback window below is.
+    has_shadowable = shadowable[1] >= shadowable[0] and shadowable[3] >= shadowable[2]
+    clamped = has_shadowable and bool(np.abs(np.asarray(shadowable)).max() > limit)
     window = np.clip(window, -limit, limit)
     pad = max(window[1] - window[0], window[3] - window[2], 1e-9) * margin
     window = (window[0] - pad, window[1] + pad, window[2] - pad, window[3] + pad)

@@ -230,7 +230,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
             if casters is not None:
                 with t.stage("light_view"):
                     face_view = lightview.fit(light, receivers, casters, frame.settings.shadow_map_size,
-                                              frame=view.view, face=rotation)
+                                              frame=view.view, face=rotation, receiver_points=pts)
                 # Pixels outside a face's window lie where no caster can shadow them (fit's window holds the
                 # shadowable receivers); only a face too wide for its map would leave shadowable ones out.
                 if face_view.clamped:
