@@ -227,6 +227,17 @@ vec2 hsm_bound(ivec2 lo, ivec2 hi) {
     return m;
 }
 
+// The one-sample bound (pass 0) uses the neighbourhood centred at lo + 2^(l−1), the level being set by the
+// area's longer side: along the shorter side that centre can lie beyond the map (seen: an area 88 × 63
+// texels ending at the map's last row, centred 2 rows past it). The MSSM stores no texel there; clamping
+// the centre back to the edge shifts the neighbourhood below lo, over texels outside the area, whose
+// occluders then keep a pixel backprojected that the exact bound proves lit (~150 pixels on a 256 × 239
+// map). Such an area takes the four-sample cover instead, which is exact and stays inside the map. `s`: the
+// grid's level (the YSM part is on the level-s grid; its padding beyond the map is left to the same rule).
+bool centre_in_map(ivec2 t, int s) {
+    return all(lessThan(t, (u_map_size + (1 << s) - 1) >> s));
+}
+
 #if REFINE == REFINE_MSSM
 vec2 cell_minmax_raw_mssm(ivec2 t, int l) {
     return texelFetch(u_mssm, ivec3(clamp(t, ivec2(0), u_map_size - 1), l), 0).rg;
@@ -250,7 +261,10 @@ vec2 ysm_bound(ivec2 lo, ivec2 hi, int fine) {
     ivec2 clo = lo >> s, chi = hi >> s;
     ivec2 n = chi - clo + 1;
     int k = ceil_log2(max(n.x, n.y));
-    if (fine == 0 && k <= u_ysm_levels) return ysm_sample(clo + (1 << (k - 1)), k);
+    ivec2 t = clo + (1 << (k - 1));
+    // Same rule as area_bound's MSSM (a centre beyond the map takes the four-sample cover), so that a YSM
+    // whose part is the whole map classifies exactly like the MSSM.
+    if (fine == 0 && k <= u_ysm_levels && centre_in_map(t, s)) return ysm_sample(t, k);
     k = ceil_log2(max((n.x + 1) / 2, (n.y + 1) / 2));
     if (k > u_ysm_levels) return hsm_bound(lo, hi);
     ivec2 a = k == 0 ? clo : clo + (1 << (k - 1));
@@ -268,10 +282,8 @@ vec2 area_bound(ivec2 lo, ivec2 hi, int fine) {
     ivec2 n = hi - lo + 1;
 #if REFINE == REFINE_MSSM
     int l = min(ceil_log2(max(n.x, n.y)), u_levels - 1);
-    if (fine == 0 && l < u_mssm_levels) {
-        ivec2 t = l == 0 ? lo : lo + (1 << (l - 1));
-        return cell_minmax_raw_mssm(t, l);
-    }
+    ivec2 t = l == 0 ? lo : lo + (1 << (l - 1));
+    if (fine == 0 && l < u_mssm_levels && centre_in_map(t, 0)) return cell_minmax_raw_mssm(t, l);
     l = min(ceil_log2(max((n.x + 1) / 2, (n.y + 1) / 2)), u_levels - 1);
     if (l >= u_mssm_levels) return hsm_bound(lo, hi);
     ivec2 a = l == 0 ? lo : lo + (1 << (l - 1));
