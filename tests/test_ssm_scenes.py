@@ -69,7 +69,7 @@ def test_ssm_within_its_fuzz_bound(name):
     """mae_shadow within the bound every random scene gets (fuzz.bound: the scene's Cycles noise floor + 0.14
     + 2 edge pixels). Before the receiver's tangent plane replaced the object split, and the camera's receiver
     pixels the rasterised receiver map: shell 0.41, torus 1.0 (every self-shadowed pixel lit), at 64²; after:
-    0.012 and 0.11 (the torus's ends, where one light texel sees three receivers: see techniques/ssm.py)."""
+    0.012 and 0.12 (the torus's ends, where one light texel sees three receivers: see techniques/ssm.py)."""
     scene = fuzz.build(SCENES[name], RES)
     cyc = fuzz.cycles_side(scene, RES[0], RES[1], SPP)
     snap = extract(bpy.context.evaluated_depsgraph_get(), scene)

@@ -72,11 +72,10 @@ void main() {
 #else
         bool near = ~imageLoad(u_near_bits, t).r == bits, far = imageLoad(u_far_bits, t).r == bits;
         if (!near && !far) continue;
-        // The receiver point on its (normal-offset) tangent plane, on the texel centre's ray.
-        vec2 w = u_light_window.xz + (vec2(t) + 0.5) / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
-        float zq = plane_depth(r.local, r.normal, vec2(t) + 0.5, reach);
-        vec3 q = u_light_ortho == 1 ? vec3(w, -zq) : vec3(w * zq, -zq);
-        vec4 a = vec4(z, q);
+        // The pixel's own (normal-offset) point for the tangent-plane rule: a point moved along the texel
+        // centre's ray would leave the plane where `reach` clamps it (a receiver nearly edge-on to the light)
+        // and let the receiver's own surface shadow it.
+        vec4 a = vec4(z, r.local);
         vec4 b = vec4(r.normal, r.through_surface ? -1.0 - r.bias : r.bias);
         if (near) { imageStore(u_near_a, t, a); imageStore(u_near_b, t, b); }
         if (far) { imageStore(u_far_a, t, a); imageStore(u_far_b, t, b); }
