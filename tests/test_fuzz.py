@@ -79,8 +79,8 @@ KNOWN_FAILURES: dict = {
     ("SPSM", 9): "SPSM keeps its own terminator rule (it decides as HARD's slope bias does where the triangle "
                  "faces away) instead of the lifted point, which its sub-texel depth tests cannot use: 0.263 "
                  "against a bound of 0.261 at 64², over ~100 shadow pixels",
-    ("SSM", 9): "SSM 0.31 at 64² over ~110 shadow pixels (0.49 before objects shadowed themselves): scattered "
-                "pixels at the hard-edged shadows of a zero-size light, also at a 1024² occluder map (0.26); "
+    ("SSM", 9): "SSM 0.24 at 64² over ~100 shadow pixels (0.49 before objects shadowed themselves): scattered "
+                "pixels at the hard-edged shadows of a zero-size light, also at a 1024² occluder map (0.23); "
                 "not analysed further",
     ("PVSM", 9): "PVSM 0.32 at 64² (0.34 before the shadow-terminator lift, which took HARD, PCSS and REFERENCE "
                  "under their bounds): scattered pixels at one object's shadow edge, not the loop limit "
