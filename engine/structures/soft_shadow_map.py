@@ -66,17 +66,17 @@ def scatter(frame, maps, patches, precision: str, method: str, weighted: bool):
     ctx, view = frame.ctx, maps.view
     size = (view.width, view.height)
     defines = {"SSM_WEIGHTED": int(weighted)}
-    uniforms = {"u_light_window_ssm": view.window, "u_ssm_size": size, "u_half": maps.half,
-                "u_ortho": int(view.is_ortho), "u_bias_texels": maps.bias}
+    uniforms = {**view.uniforms(), "u_half": maps.half, "u_ortho": int(view.is_ortho), "u_bias_texels": maps.bias}
     patches.buffer.bind_to_storage_buffer(0)
     m = patches.count
-    receivers = maps.maps["receivers"]
+    receivers = {name: maps.maps[key] for name, key in (("u_near_a", "near"), ("u_near_b", "near_n"),
+                                                         ("u_far_a", "far"), ("u_far_b", "far_n"))}
     if method == "COMPUTE":
         for binding in (1, 2):
             t = frame.texture(size, 1, dtype="u4")     # zero-filled
             t.bind_to_image(binding, read=True, write=True)
         prog = program(frame.worker, compute="ssm/scatter.comp", defines=defines)
-        bind_samplers(prog, {"u_receivers": receivers})
+        bind_samplers(prog, receivers)
         set_uniforms(prog, {**uniforms, "u_count": m})
         # the patch rows stay on the GPU: a rectangle holds at most the whole map's texels
         chunks = chunk_count(size[0] * size[1])
@@ -96,7 +96,7 @@ def scatter(frame, maps, patches, precision: str, method: str, weighted: bool):
 
     dtype = "f4" if precision == "FLOAT32" else "f2"
     prog = program(frame.worker, "ssm/scatter.vert", "ssm/scatter.frag", defines=defines)
-    bind_samplers(prog, {"u_receivers": receivers})
+    bind_samplers(prog, receivers)
     set_uniforms(prog, uniforms)
     vao = _vertexless(frame, prog)
     ssm = frame.texture(size, 2, dtype)
@@ -122,7 +122,7 @@ def scatter(frame, maps, patches, precision: str, method: str, weighted: bool):
                 batch_fbo.use()
                 batch_fbo.clear(0.0, 0.0, 0.0, 0.0)
                 prog["u_first"].value = int(first)
-                bind_samplers(prog, {"u_receivers": receivers})
+                bind_samplers(prog, receivers)
                 vao.render(ctx.TRIANGLE_STRIP, vertices=4, instances=int(last - first))
                 fbo.use()
                 bind_samplers(add, {"u_batch": batch})

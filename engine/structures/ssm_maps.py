@@ -1,6 +1,7 @@
 """Soft Shadow Maps' per-light maps (Atty et al. 2006, §3.1–3.3, §3.5): occluder maps of the casters (front-most;
-farthest back faces for the two-pass method) and receiver maps (nearest; farthest receiver) from the light
-centre, with texels of the light's aspect ratio, each texel tagged with its object index; and the micro-patch
+farthest back faces for the two-pass method) from the light centre, with texels of the light's aspect ratio,
+each texel tagged with its object index; receiver maps (nearest; farthest receiver, with its normal) made
+from the receiver pixels the camera sees (glsl/ssm/receivers.comp, see techniques/ssm.py); and the micro-patch
 list with each patch's penumbra extent (§3.3). The paper builds the list on the CPU; here glsl/ssm/patches.comp
 builds it on the GPU, row for row what `patch_list` (the numpy reference) gives, and only the patch count and
 the work estimate come back. The occluder-map resolution is lowered until the scatter's estimated work fits
@@ -28,7 +29,7 @@ RECEIVER_MASK = "ssm_receiver_mask"
 CASTER_ROLES = ("CASTER", "BOTH")
 RECEIVER_ROLES = ("RECEIVER", "BOTH")
 # Relative depth separation (fraction of the receiver's linear depth) a micro-patch needs to occlude a
-# receiver, zo < zr·(1 − ε): keeps a receiver's own texels in the occluder map from shadowing it.
+# receiver, zo < zr·(1 − ε): float32 rounding only (the receiver's tangent plane keeps its own surface out).
 DEPTH_EPSILON = 1e-5
 
 
@@ -259,29 +260,35 @@ class SsmMaps:
         return resource_bytes(self.maps) + sum(p.nbytes for p in self.patches)
 
 
-def _draw_maps(frame, view, casters, receivers, two_pass) -> dict:
-    """Occluder maps (front-most casters; farthest back faces, §3.5) and receiver maps (nearest; farthest),
-    linear depth from the light centre and object index. Empty texels: NO_OCCLUDER (nearest) or 0
-    (farthest); index −1."""
+def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
+    """Occluder maps (front-most casters; farthest back faces, §3.5), linear depth from the light centre and
+    object index (empty: NO_OCCLUDER or 0, index −1), and the receiver maps of the camera's receiver pixels
+    (glsl/ssm/receivers.comp): near/far (depth, receiver point; 0: none) and near_n/far_n (normal, bias)."""
     prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
-    jobs = [("front", "caster", casters, False, False), ("near", "receiver", receivers, False, False),
-            ("far", "receiver", receivers, True, False)]
+    jobs = [("front", casters, False, False)]
     if two_pass:
-        jobs.append(("back", "caster", casters, True, True))
+        jobs.append(("back", casters, True, True))
     size = (view.width, view.height)
     out = {}
-    for name, role, objects, farthest, back_only in jobs:
+    for name, objects, farthest, back_only in jobs:
         draws = [(frozenset((int(index),)), {"u_object": float(index)}) for index in objects]  # tagged draws
-        out[name] = frame.rasterise(frame.target(size, 2), prog, view.view, view.view_proj, role=role,
+        out[name] = frame.rasterise(frame.target(size, 2), prog, view.view, view.view_proj, role="caster",
                                     draws=draws, farthest=farthest, uniforms={"u_back_only": int(back_only)},
                                     clear=(0.0 if farthest else NO_OCCLUDER, -1.0, 0.0, 0.0))
-    out["receivers"] = frame.texture(size, 4)
-    frame.dispatch("ssm/pack.comp", samplers={"u_recv_near": out["near"], "u_recv_far": out["far"]},
-                   images={0: out["receivers"]}, size=size)
+    bits = {0: frame.texture(size, 1, dtype="u4"), 1: frame.texture(size, 1, dtype="u4")}    # zero-filled
+    for name in ("near", "near_n", "far", "far_n"):
+        out[name] = frame.texture(size, 4)
+    uniforms = {**view.uniforms(), **frame.bias_uniforms, "u_has_mask": int(mask is not None)}
+    samplers = {"g_irradiance": lc.irradiance, "u_receiver_mask": mask if mask is not None else bits[0]}
+    frame.dispatch("ssm/receivers.comp", uniforms, samplers=samplers, images=bits, defines={"PASS": 0})
+    frame.dispatch("ssm/receivers.comp", uniforms, samplers=samplers, defines={"PASS": 1},
+                   images={**bits, 2: out["near"], 3: out["near_n"], 4: out["far"], 5: out["far_n"]})
+    for t in bits.values():
+        frame.give_back(t)
     return out
 
 
-@structure(SSM_MAPS)
+@structure(SSM_MAPS, requires=(RECEIVER_MASK,))
 def build(frame, lc, size: int, budget: float, two_pass: bool):
     """`size`: texels along the longer side; `budget`: SSM texel updates allowed before the maps are made
     coarser (§5.1); `two_pass`: also the back-face occluder map (§3.5)."""
@@ -313,7 +320,7 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
     for _attempt in range(4):
         view = ssm_view(lc.view, half, size)
         with frame.timings.stage("ssm_maps"):
-            maps = _draw_maps(frame, view, casters, receivers, two_pass)
+            maps = _draw_maps(frame, lc, view, casters, two_pass, lc.structures[RECEIVER_MASK])
             counted = _count_patches(frame, view, half, [maps[n] for n in occluder_maps], maps["far"], bias)
         work = sum(counted.works)
         if work <= budget or size <= 32:
@@ -332,18 +339,16 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
     return SsmMaps(casters, receivers, half, view, maps, patches, bias, skipped)
 
 
-@structure(RECEIVER_MASK, requires=(SSM_MAPS,))
+@structure(RECEIVER_MASK)
 def build_receiver_mask(frame, lc):
     """Camera-resolution mask (g = 1) of the pixels whose nearest surface is a receiver, or None when every
-    camera-visible object is one (or the light is skipped). Depth matching alone cannot tell a CASTER-only
-    surface that lies between two receivers (seen from the light centre) from a receiver there."""
-    maps = lc.structures[SSM_MAPS]
-    if maps.skipped:
-        return None
-    receivers = maps.receivers
+    camera-visible object is one. SSM's receiver maps take only those pixels, and its projection shadows
+    only those: depth matching alone cannot tell a CASTER-only surface that lies between two receivers
+    (seen from the light centre) from a receiver there."""
+    _casters, receivers = split_roles(frame.snap)
     visible = [i for i, o in enumerate(frame.snap.objects) if o.receiver]
     others = [i for i in visible if i not in set(receivers)]
-    if not others:
+    if not others or not receivers:
         return None
     cam = frame.snap.camera
     prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")

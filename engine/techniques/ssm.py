@@ -15,20 +15,24 @@ Per light (Fig. 3 of the paper):
   5. the SSM is projected onto the receivers in the camera view: V = 1 - occlusion.
 
 Roles (Object Properties → Penumbra → Shadow Role): micro-patches come from CASTER and BOTH objects,
-receiver depths from RECEIVER and BOTH objects. Self-shadowing is not modelled by this technique (the
-paper's occluder/receiver split, §1 and §6): an object never shadows itself — the maps carry object
-indices and a patch skips receivers of its own object. (Without that, the staircase of micro-patches
-parallel to the light shadows any surface steeper than ~50° to the light plane: measured on suzanne,
-mae_shadow 0.126 → 0.078.)
+receivers are the RECEIVER and BOTH pixels the camera sees. The paper separates occluders from receivers
+(§1, §6); in a general scene every object is both, so an object does shadow itself here (a monkey's
+brow on its eyes, a room's walls on what is inside it under a light outside): a micro-patch counts for a
+receiver only if it lies above the receiver's tangent plane, by the slope-scaled bias (the rule
+common/light_view.glsl's receiver_depth_at gives every technique, with the Cycles-style terminator lift of
+pixel_receiver). The receiver's own surface, a convex object's far side and the staircase of micro-patches
+parallel to the light along a steep surface all lie on or below that plane.
 
-How BOTH maps into the split: BOTH objects appear in both the occluder and the receiver maps. A flat,
-axis-aligned caster that every visible receiver lies on the light side of (a ground plane) cannot shadow
-anything and is left out of the occluder maps (lightview.shadowing_caster_bounds), so a BOTH floor is a
-receiver only. A floating BOTH occluder hides the floor beneath it from the light centre, so one receiver
-depth per texel is not enough: each SSM texel stores the occlusion for the nearest and for the farthest
-receiver seen through it (two channels of one scatter), and a camera pixel takes the one whose depth it
-matches, interpolating by depth for a third layer in between (deviation: the paper has one receiver map).
-Pixels of camera-visible objects that are not receivers (CASTER role) get V = 1.
+Receiver maps (deviation: the paper rasterises one receiver map from the light): built from the camera's
+receiver pixels, each splatted into the 2×2 texels its bilinear look-up reads at its tangent plane's depth
+there; per texel the nearest and the farthest such receiver are kept with their normals (ssm/receivers.comp),
+the scatter sums the occlusion of both (two channels), and a camera pixel takes the one whose depth it
+matches, interpolating by depth in between. A surface the camera does not see (a box's top above the floor
+inside it) is no receiver, so it cannot stand in for the receivers behind it; the farthest visible receiver
+also bounds the penumbra extents (§3.3), so hidden surfaces cost no scatter work. A flat, axis-aligned
+caster that every visible receiver lies on the light side of (a ground plane) cannot shadow anything and is
+left out of the occluder maps (lightview.shadowing_caster_bounds). Pixels of camera-visible objects that are
+not receivers (CASTER role) get V = 1.
 
 Accumulation precision (appendix A): float32 blending (default); half-float blending, which loses the
 contributions of micro-patches hiding less than ~2^-11 of the light once the sum grows (large maps); and
@@ -62,8 +66,8 @@ class SoftShadowMaps(Technique):
     identifier = "SSM"
     label = "Soft Shadow Maps"
     description = ("Atty et al. 2006: occluder-map texels scattered as micro-patches onto a soft shadow map. "
-                   "Casters shadow receivers (Object → Penumbra → Shadow Role); self-shadowing within one "
-                   "role is not modelled. Disk, ellipse, sphere and sun lights use their bounding rectangle")
+                   "Casters shadow receivers (Object → Penumbra → Shadow Role), an object itself too; "
+                   "disk, ellipse, sphere and sun lights use their bounding rectangle")
     needs = (SSM_MAPS, SOFT_SHADOW_MAP, RECEIVER_MASK)    # with parameters from the options: needs_for
     options = (
         Option("ssm_map_size", 256, "Occluder Map Size",

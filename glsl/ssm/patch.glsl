@@ -13,26 +13,65 @@
 // is h (metres, or tan(angle/2) for a sun). Normalising the light to [0, 1]² (the paper's MOV_SAT / SUB /
 // MUL trick) the hidden fraction is the product of the two clamped interval lengths.
 #include "common/penumbra.glsl"
+// light_view.glsl: the SSM view's window and size (u_light_window, u_map_size), the receiver rule
+#include "common/light_view.glsl"
 #ifndef SSM_WEIGHTED
 #define SSM_WEIGHTED 0                  // 1: occlusion weighted by irradiance (see weighted_fraction)
 #endif
-uniform vec4 u_light_window_ssm;    // x0, x1, y0, y1 of the SSM view (window units)
-uniform ivec2 u_ssm_size;           // occluder map = receiver map = soft shadow map texels
 uniform vec2 u_half;                // light half extent (bounding rectangle for round lights)
 uniform int u_ortho;
 uniform float u_bias_texels;        // relative depth gap: a patch occludes only if zo < zr·(1 − u_bias_texels)
 
 vec2 ssm_texel_tan() {
-    return (u_light_window_ssm.yw - u_light_window_ssm.xz) / vec2(u_ssm_size);
+    return (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
 }
 
 // Window position of a texel-space point.
 vec2 ssm_window(vec2 texel_pos) {
-    return u_light_window_ssm.xz + texel_pos * ssm_texel_tan();
+    return u_light_window.xz + texel_pos * ssm_texel_tan();
 }
 
 bool depth_valid(float z) {
     return z > 0.0 && z < EMPTY_DEPTH;
+}
+
+// A receiver of one soft-shadow-map texel, from the records of ssm/receivers.comp (a: depth, point; b:
+// normal, bias with the through-surface flag as its sign).
+Receiver ssm_receiver(vec4 a, vec4 b) {
+    Receiver r;
+    r.local = a.yzw;
+    r.normal = b.xyz;
+    r.map = vec3(0.0, 0.0, -a.w);       // only its depth is read (receiver_depth_at)
+    r.through_surface = b.w < 0.0;
+    r.bias = r.through_surface ? -b.w - 1.0 : b.w;
+    return r;
+}
+
+// Whether the micro-patch of occluder texel `patch_texel` (depth zo) can shadow receiver r at all. Every
+// object is both occluder and receiver in general scenes, so instead of the paper's split (§1, §6) the
+// shared tangent-plane rule decides: nothing on or below the receiver's tangent plane (its own surface, a
+// convex object's far side) hides any light above that plane, tested at the patch's centre with the
+// receiver's slope-scaled bias (common/light_view.glsl receiver_depth_at).
+bool patch_can_shadow(Receiver r, vec2 patch_texel, float zo) {
+    if (zo < receiver_depth_at(r, patch_texel + 0.5)) return true;
+    // With the light's centre on or below the plane the shared rule lets nothing count (every ray from the
+    // centre meets the receiver from below), but part of an area light or a wide sun may still be above it,
+    // and a patch above the plane, between it and the receiver, hides some of that part: above the plane
+    // along the patch's ray means beyond the depth zc where the ray crosses it.
+    if (r.through_surface) return false;        // receiver_depth_at already let everything nearer count
+    vec2 w = ssm_window(patch_texel + 0.5);
+    float np = dot(r.normal, r.local), zc;
+    if (u_light_ortho == 1) {
+        if (r.normal.z > 1e-6) return false;    // the sun's centre above the plane: the shared rule decided
+        // point (w, -z): height over the plane n.xy·w − np − n.z·z, growing with z as n.z ≤ 0
+        zc = (np - dot(r.normal.xy, w)) / max(-r.normal.z, 1e-9);  // 1e-9: a plane along the rays
+    } else {
+        if (np < 0.0) return false;             // the centre above the plane: the shared rule decided
+        float den = dot(r.normal.xy, w) - r.normal.z;   // point z·(w, −1): above the plane where z·den > np
+        if (den <= 0.0) return false;
+        zc = np / den;
+    }
+    return zo > zc + r.bias && zo < -r.local.z - r.bias;
 }
 
 #if SSM_WEIGHTED
@@ -64,8 +103,7 @@ float weighted_fraction(vec4 ab, vec2 t, float zr) {
 // Lean form for the scatter's inner loop: d = (lo - t, hi - t) in window units, inv_zo = 1/zo, inv_2h =
 // 1/(2h), texel_world_1 = world size of a texel at unit depth (perspective) or its size (ortho).
 float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h, float texel_world_1, vec2 t) {
-    // No texel-sized bias is needed: a surface never occludes its own object (the ids differ), so only
-    // rasterisation rounding between two objects' maps has to be absorbed (relative 1e-5).
+    // The receiver's own surface is kept out by patch_can_shadow; this only guards the spread's sign.
     if (!(zr > 0.0 && zr < EMPTY_DEPTH) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     float s = u_ortho == 1 ? zr - zo : inv_zo - 1.0 / zr;     // penumbra_spread, 1/zo hoisted per patch
     vec2 k = inv_2h / s;

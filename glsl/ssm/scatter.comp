@@ -12,7 +12,10 @@ struct Patch {
 layout(std430, binding = 0) readonly buffer Patches { Patch patches[]; };
 layout(r32ui, binding = 1) uniform uimage2D u_sum_near;
 layout(r32ui, binding = 2) uniform uimage2D u_sum_far;
-uniform sampler2D u_receivers;   // nearest receiver depth, object; farthest receiver depth, object
+uniform sampler2D u_near_a;     // ssm/receivers.comp's records of the nearest and the farthest receiver
+uniform sampler2D u_near_b;
+uniform sampler2D u_far_a;
+uniform sampler2D u_far_b;
 uniform int u_count;
 uniform int u_chunk;
 uniform int u_chunk_size;
@@ -30,9 +33,13 @@ void main() {
     ivec2 texel = lo + ivec2(k0 % max(n.x, 1), k0 / max(n.x, 1));
     for (int k = k0; k < k1; ++k) {
         vec2 centre = vec2(texel) + 0.5;
-        vec4 z = texelFetch(u_receivers, texel, 0);
-        float on = z.y == p.data.w ? 0.0 : patch_occlusion(p.data.xy, p.data.z, centre, z.x);
-        float of = z.w == p.data.w ? 0.0 : patch_occlusion(p.data.xy, p.data.z, centre, z.z);
+        vec4 na = texelFetch(u_near_a, texel, 0), fa = texelFetch(u_far_a, texel, 0);
+        float on = depth_valid(na.x) && patch_can_shadow(ssm_receiver(na, texelFetch(u_near_b, texel, 0)),
+                                                         p.data.xy, p.data.z)
+                 ? patch_occlusion(p.data.xy, p.data.z, centre, na.x) : 0.0;
+        float of = depth_valid(fa.x) && patch_can_shadow(ssm_receiver(fa, texelFetch(u_far_b, texel, 0)),
+                                                         p.data.xy, p.data.z)
+                 ? patch_occlusion(p.data.xy, p.data.z, centre, fa.x) : 0.0;
         if (on > 0.0) imageAtomicAdd(u_sum_near, texel, uint(on * FIXED_POINT + 0.5));
         if (of > 0.0) imageAtomicAdd(u_sum_far, texel, uint(of * FIXED_POINT + 0.5));
         if (++texel.x == hi.x) texel = ivec2(lo.x, texel.y + 1);

@@ -11,6 +11,7 @@ layout(std430, binding = 0) readonly buffer Patches { Patch patches[]; };
 uniform int u_first;            // first patch of this draw (FP16 batching, appendix A)
 flat out vec4 v_lohi;
 flat out vec3 v_depth;
+flat out vec2 v_patch;         // the patch's occluder texel
 
 void main() {
     Patch p = patches[u_first + gl_InstanceID];
@@ -19,5 +20,6 @@ void main() {
     vec2 lo = ssm_window(p.data.xy);
     v_lohi = vec4(lo, lo + ssm_texel_tan());
     v_depth = vec3(p.data.z, 1.0 / p.data.z, p.data.w);
-    gl_Position = vec4(pos / vec2(u_ssm_size) * 2.0 - 1.0, 0.0, 1.0);
+    v_patch = p.data.xy;
+    gl_Position = vec4(pos / vec2(u_map_size) * 2.0 - 1.0, 0.0, 1.0);
 }
