@@ -3,7 +3,6 @@
 weights are, so a small caster's soft shadow came out as one or two hard ones (seed 99: mae_shadow 0.13 at
 64 samples, 0.015 at 1024). averaged.near_area_samples draws most samples by the solid angle seen from the
 receivers' centre and weights each by 1/pdf of the mixture. A Cycles reference is cached."""
-import json
 
 import numpy as np
 import pytest
@@ -65,17 +64,9 @@ def test_ordinary_lights_keep_uniform_samples():
 def test_reference_within_bound_under_a_near_wide_light():
     """REFERENCE (64 samples) within the fuzz's own bound. Measured at 64², 256 spp: 0.072 with uniform
     samples (bound 0.035), 0.024."""
-    bpy = pytest.importorskip("bpy")
-    from penumbra.engine.blender.extract import extract
-    from penumbra.engine.core.settings import RenderSettings
-    from penumbra.engine.measure import fuzz, metrics
-    from penumbra.engine.render import pipeline
-    sc = fuzz.build(json.loads(json.dumps(NEAR_WIDE_LIGHT)), RES)
-    cyc = fuzz.cycles_side(sc, RES[0], RES[1], fuzz.CYCLES_SAMPLES)
-    snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
-    r = pipeline.render(snap, RenderSettings(antialiasing=False).with_(technique="REFERENCE"))
-    m = metrics.compare(r.passes["Visibility"][..., 0], cyc.ref.visibility, cyc.ref.mask)
-    bound = fuzz.bound("REFERENCE", cyc.floor["mae_shadow"], m["n_shadow"])
+    pytest.importorskip("bpy")
+    from penumbra.engine.measure import fuzz
+    m, bound = fuzz.shadow_score(NEAR_WIDE_LIGHT, "REFERENCE", RES)
     print(f"mae_shadow {m['mae_shadow']:.4f} over {m['n_shadow']} px, bound {bound:.4f}")
     assert m["n_shadow"] > 500
     assert m["mae_shadow"] <= bound

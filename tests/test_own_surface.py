@@ -8,16 +8,11 @@ normal offset against bias, or lit. The scene is seed 74 cut down to its huge sm
 triangles carry corner normals up to 75° off their face, the floor and the three lights (two of them
 inside the monkey, so their views are clamped to ±80° and the lift carries points past the window).
 A Cycles reference is cached."""
-import json
-
 import pytest
 
-bpy = pytest.importorskip("bpy")
+pytest.importorskip("bpy")
 
-from penumbra.engine.blender.extract import extract  # noqa: E402
-from penumbra.engine.core.settings import RenderSettings  # noqa: E402
-from penumbra.engine.measure import fuzz, metrics  # noqa: E402
-from penumbra.engine.render import pipeline  # noqa: E402
+from penumbra.engine.measure import fuzz  # noqa: E402
 
 RES = (64, 64)
 
@@ -40,12 +35,7 @@ HUGE_MONKEY = {
 
 def test_reference_stops_rays_aimed_into_their_own_smooth_triangle():
     """REFERENCE within the fuzz's own bound. Measured at 64², 256 spp: 0.055 before (bound 0.035), 0.016."""
-    sc = fuzz.build(json.loads(json.dumps(HUGE_MONKEY)), RES)
-    cyc = fuzz.cycles_side(sc, RES[0], RES[1], fuzz.CYCLES_SAMPLES)
-    snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
-    r = pipeline.render(snap, RenderSettings(antialiasing=False).with_(technique="REFERENCE"))
-    m = metrics.compare(r.passes["Visibility"][..., 0], cyc.ref.visibility, cyc.ref.mask)
-    bound = fuzz.bound("REFERENCE", cyc.floor["mae_shadow"], m["n_shadow"])
+    m, bound = fuzz.shadow_score(HUGE_MONKEY, "REFERENCE", RES)
     print(f"mae_shadow {m['mae_shadow']:.4f} over {m['n_shadow']} px, bound {bound:.4f}")
     assert m["n_shadow"] > 200
     assert m["mae_shadow"] <= bound

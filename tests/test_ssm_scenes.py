@@ -17,7 +17,7 @@ bpy = pytest.importorskip("bpy")
 
 from penumbra.engine.blender.extract import extract  # noqa: E402
 from penumbra.engine.core.settings import RenderSettings  # noqa: E402
-from penumbra.engine.measure import fuzz, metrics, reference, scenes  # noqa: E402
+from penumbra.engine.measure import fuzz, reference, scenes  # noqa: E402
 from penumbra.engine.render import pipeline  # noqa: E402
 
 RES = (64, 64)
@@ -70,12 +70,7 @@ def test_ssm_within_its_fuzz_bound(name):
     + 2 edge pixels). Before the receiver's tangent plane replaced the object split, and the camera's receiver
     pixels the rasterised receiver map: shell 0.41, torus 1.0 (every self-shadowed pixel lit), at 64²; after:
     0.012 and 0.12 (the torus's ends, where one light texel sees three receivers: see techniques/ssm.py)."""
-    scene = fuzz.build(SCENES[name], RES)
-    cyc = fuzz.cycles_side(scene, RES[0], RES[1], SPP)
-    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
-    r = pipeline.render(snap, RenderSettings(antialiasing=False).with_(technique="SSM"))
-    m = metrics.compare(r.passes["Visibility"][..., 0], cyc.ref.visibility, cyc.ref.mask)
-    bound = fuzz.bound("SSM", cyc.floor["mae_shadow"], m["n_shadow"])
+    m, bound = fuzz.shadow_score(SCENES[name], "SSM", RES, SPP)
     print(f"{name}: mae_shadow {m['mae_shadow']:.4f} over {m['n_shadow']} px, bound {bound:.4f}")
     assert m["n_shadow"] > 300
     assert m["mae_shadow"] <= bound, f"{name}: mae_shadow {m['mae_shadow']:.4f} > {bound:.4f}"

@@ -350,6 +350,25 @@ def cycles_side(scene, width: int, height: int, samples: int = CYCLES_SAMPLES) -
     return SceneReference(a, floor, unshadowed_error(b.unshadowed, a.unshadowed, mask), a.seconds + b.seconds)
 
 
+def shadow_score(params: dict, technique: str, resolution=RESOLUTION, samples: int = CYCLES_SAMPLES) -> tuple:
+    """(metrics, bound) of one technique's Visibility on a hand-built scene in this generator's format: the
+    fuzz's shadow check alone (no Unshadowed check), for tests of one class of scene."""
+    import json
+
+    import bpy
+
+    from ..blender.extract import extract
+    from ..core.settings import RenderSettings
+    from ..render import pipeline
+    from .metrics import compare
+    scene = build(json.loads(json.dumps(params)), resolution)      # build may not touch the caller's dict
+    cyc = cycles_side(scene, int(resolution[0]), int(resolution[1]), samples)
+    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+    result = pipeline.render(snap, RenderSettings(antialiasing=False).with_(technique=technique))
+    m = compare(result.passes["Visibility"][..., 0], cyc.ref.visibility, cyc.ref.mask)
+    return m, bound(technique, cyc.floor["mae_shadow"], m["n_shadow"])
+
+
 def failure_class(params: dict, warnings: list[str]) -> str:
     """A first guess at why a scene fails, from what it contains (the report lists the examples)."""
     classes = []
