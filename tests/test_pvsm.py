@@ -387,7 +387,7 @@ def test_wide_sun_kernel_weights_directions_by_the_irradiance_they_carry(angle):
     class). The map's plane holds a sun's directions with density cos³θ and each carries the receiver's
     cosine; with plain area weights a wide sun's kernel was an even average of far-off directions, many of
     them below the receiver's horizon (mae_shadow 0.090 and 0.095, PCSS 0.067 and 0.073; fuzz 5016: 0.20
-    against a bound of 0.15). Weighted, and its box held to tan 4 (pvsm.SUN_KERNEL_TAN), PVSM is no worse
+    against a bound of 0.15). Weighted, and its box held to tan 4 (core.light_shape.SUN_KERNEL_TAN), PVSM is no worse
     than PCSS here (0.041 and 0.039)."""
     bpy = pytest.importorskip("bpy")
     from penumbra.engine.blender.extract import extract

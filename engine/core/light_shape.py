@@ -58,6 +58,19 @@ def light_depth_extent(light: Light, face=None) -> float:
     return float(light.radius)
 
 
+# Weighted kernels and light samples of a sun stop at directions 76° off its axis (tan 4): past them a receiver
+# facing the sun gets cos²76° ≈ 6 % of its light under the cos³θ·cosθ weights (light_view.glsl's
+# light_sample_weight), while a disk of tangents out to tan 90° spends its samples, or the filter its level,
+# on directions that carry almost nothing (PVSM's and BACKPROJECTION's measurements in their modules).
+SUN_KERNEL_TAN = 4.0
+
+
+def weighted_sun_half(light: Light, half) -> tuple:
+    """A light's half extent in the view (light_half_extent) as weighted kernels use it: a sun's held to
+    SUN_KERNEL_TAN."""
+    return tuple(min(float(x), SUN_KERNEL_TAN) if light.kind == SUN else float(x) for x in half)
+
+
 def light_shape_uniforms(light: Light, view) -> dict:
     """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun), whether it
     is round (disk, ellipse, sphere, sun) or rectangular, and whether it is a one-sided planar emitter and

@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import importance
+from ..core.light_shape import weighted_sun_half
 from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM,
                                      CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
@@ -291,6 +292,9 @@ class Backprojection(Technique):
         blend = bool(o["bp_blend"]) and budget_mode != BUDGET_UNBOUNDED and force < 0 and not light.is_delta
 
         shape = light_shape_uniforms(light, view)
+        weighted = bits > 0 and o["bp_weighting"] == "IRRADIANCE" and not light.is_delta
+        if weighted:
+            shape["u_light_half"] = weighted_sun_half(light, shape["u_light_half"])
         n, jx, jy = sample_pattern(accumulation) if bits else (0, (0.5, 0.5), (0.5, 0.5))
         valid = valid_mask(accumulation, round_) if bits else np.zeros((0, 0), bool)
         uniforms = {**lc.uniforms, **shape, "u_round": int(round_),
@@ -316,7 +320,7 @@ class Backprojection(Technique):
             lc.visibility_rgb = rgb_tex         # Combined shades each channel with its own visibility
         defines = {"BITS": bits, "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
                    "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
-                   "WEIGHTED": int(bits > 0 and o["bp_weighting"] == "IRRADIANCE" and not light.is_delta),
+                   "WEIGHTED": int(weighted),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
                    "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER}
         frame.progress.check()

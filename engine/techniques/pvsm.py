@@ -39,9 +39,9 @@ import numpy as np
 from dataclasses import replace
 
 from ..core import lightview
+from ..core.light_shape import weighted_sun_half
 from ..core.matrices import mat_uniform
 from ..core.shader_constants import PVSM_SEARCH_CELLS
-from ..core.snapshot import SUN
 from .. import structures
 from ..gpu import loops
 from ..structures.conservative_map import CONSERVATIVE_MAP
@@ -64,12 +64,9 @@ UNBOUNDED = 1.0e30
 RHO = {"NONE": 0, "DYNAMIC": 1, "STATIC": 2, "LINEAR": 3}
 STATIC_PEAK = 7.6375     # where dρ_static/dx = 1.406 − 0.09374x − 0.011832x² = 0
 ROUND_BOX = math.sqrt(3.0) / 2.0     # box of the same variance as a disk of radius 1
-# A weighted sun's kernel reaches no further than directions 76° off its axis (tan 4): past them a receiver
-# facing the sun gets cos²76° ≈ 6 % of its light (the cos³θ·cosθ weights of visibility.comp), while a box out
-# to tan 90° makes the filter read a level so coarse that the few cells carrying the weight miss the
-# occluders (a ball under a 178° sun at 64², mae_shadow against Cycles: 0.095 unbounded, 0.065 at tan 8,
-# 0.039 at tan 4 and tan 2).
-SUN_KERNEL_TAN = 4.0
+# A weighted sun's kernel stops at tan 4 (core.light_shape.SUN_KERNEL_TAN): a box out to tan 90° makes the
+# filter read a level so coarse that the few cells carrying the weight miss the occluders (a ball under a 178°
+# sun at 64², mae_shadow against Cycles: 0.095 unbounded, 0.065 at tan 8, 0.039 at tan 4 and tan 2).
 
 
 def rho(n, kind: str = "DYNAMIC"):
@@ -257,8 +254,8 @@ class Pvsm(Technique):
         shape = light_shape_uniforms(light, view)
         half = tuple(float(x) * (ROUND_BOX if is_round(light) else 1.0) for x in shape["u_light_half"])
         weighted = o["pvsm_weighting"] == "IRRADIANCE" and not light.is_delta
-        if light.kind == SUN and weighted:
-            half = tuple(min(x, SUN_KERNEL_TAN) for x in half)
+        if weighted:
+            half = weighted_sun_half(light, half)
         cam = frame.snap.camera
         info_wanted = bool(s.collect_stats or s.debug_passes)
         uniforms = {

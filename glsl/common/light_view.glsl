@@ -207,9 +207,16 @@ vec3 view_direction(vec3 world_dir) {
 // Unoccluded contribution at receiver r (shading normal n, view frame) of the light point that kernel
 // position k ∈ [-1, 1]² stands for (k·half on the light plane; the direction (k·half, 1) for a sun): the
 // receiver's cosine, times the emitter's cosine over d² for a planar light, over d² for a sphere's disk.
+// A sun's directions are uniform in solid angle, which the tangent plane holds with density cos³θ
+// (dΩ = cos³θ dA at unit height): with the receiver's cosine, (n·d)/|d|⁴ for d = (k·half, 1). Without that
+// density a wide sun's rim directions counted up to 1/cos³θ too much (15× at 66° off its axis).
 // Zero below the receiver's horizon: such a point carries no light, so it counts neither as lit nor occluded.
 float light_sample_weight(Receiver r, vec3 n, vec2 k) {
-    if (u_light_ortho == 1) return max(dot(n, normalize(vec3(k * u_light_half, 1.0))), 0.0);
+    if (u_light_ortho == 1) {
+        vec3 d = vec3(k * u_light_half, 1.0);
+        float q2 = dot(d, d);
+        return max(dot(n, d), 0.0) / (q2 * q2);
+    }
     vec3 to_sample = vec3(k * u_light_half, 0.0) - r.local;
     float d2 = max(dot(to_sample, to_sample), 1e-30);
     vec3 dir = to_sample * inversesqrt(d2);
