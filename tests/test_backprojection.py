@@ -380,16 +380,7 @@ def test_wide_sun_samples_weigh_the_solid_angle_they_stand_for(angle):
     receiver's cosine alone, the rim directions counted up to 1/cos³θ too much (mae_shadow 0.090 and 0.095,
     above PCSS's 0.067 and 0.073). With the density, and the disk held to tan 4 like PVSM's kernel
     (core.light_shape.SUN_KERNEL_TAN): 0.049 and 0.044."""
-    bpy = pytest.importorskip("bpy")
-    from penumbra.engine.blender.extract import extract
-    from penumbra.engine.measure import metrics, reference
-    from penumbra.tests.test_spsm import wide_sun_ball
-    sc = wide_sun_ball((64, 64), angle)
-    ref = reference.cycles_visibility(sc, samples=256)
-    snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
-    mae = {}
-    for tech in ("PCSS", "BACKPROJECTION"):
-        v = pipeline.render(snap, RenderSettings(technique=tech)).passes["Visibility"][..., 0]
-        mae[tech] = metrics.compare(v, ref.visibility, ref.mask)["mae_shadow"]
-    print(angle, mae)
+    pytest.importorskip("bpy")
+    from penumbra.tests.test_spsm import wide_sun_ball_errors
+    mae = wide_sun_ball_errors(angle, ("PCSS", "BACKPROJECTION"))
     assert mae["BACKPROJECTION"] <= 0.8 * mae["PCSS"]

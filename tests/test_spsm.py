@@ -381,6 +381,23 @@ def wide_sun_ball(resolution, angle):
     return sc
 
 
+def wide_sun_ball_errors(angle, techniques, resolution=(64, 64)) -> dict:
+    """mae_shadow of each technique on wide_sun_ball against Cycles (256 spp)."""
+    import bpy
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.measure import metrics, reference
+    from penumbra.engine.render import pipeline
+    sc = wide_sun_ball(resolution, angle)
+    ref = reference.cycles_visibility(sc, samples=256)
+    snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
+    out = {}
+    for tech in techniques:
+        v = pipeline.render(snap, RenderSettings(technique=tech)).passes["Visibility"][..., 0]
+        out[tech] = metrics.compare(v, ref.visibility, ref.mask)["mae_shadow"]
+    print(angle, out)
+    return out
+
+
 def lowpoly_ball_terminator(resolution):
     """A smooth low-poly ball (10 × 6 segments, 0.8 m) on the floor, a 0.5 m square light 18° above its
     equator, seen side-on: its shadow terminator runs across the camera's view (fuzz seed 9's class)."""
