@@ -29,12 +29,26 @@ from .base import MAP_SIZE_SWEEP, Option, Technique
 _R_ROOTS = {2: 1.32471795724474602596, 3: 1.22074408460575947536}
 
 
-def r_sequence(n: int, dims: int, seed: int = 0) -> np.ndarray:
-    """n points in [0, 1)^dims, well stratified for any n (R_d sequence with a seeded offset)."""
+def r_sequence(n: int, dims: int, seed: int = 0, start: int = 0) -> np.ndarray:
+    """n points in [0, 1)^dims, well stratified for any n (R_d sequence with a seeded offset); `start` skips
+    the sequence's first points, so successive batches continue one sequence."""
     g = _R_ROOTS[dims]
     alpha = np.array([1.0 / g ** k for k in range(1, dims + 1)])
     offset = np.random.default_rng(seed).random(dims)
-    return (offset + np.arange(1, n + 1)[:, None] * alpha) % 1.0
+    return (offset + np.arange(start + 1, start + n + 1)[:, None] * alpha) % 1.0
+
+
+def _kept_points(n: int, seed: int, batch: int, place, max_batches: int) -> np.ndarray:
+    """Up to n points by rejection from successive batches of one 2-D `r_sequence`: `place` maps a batch of
+    [0, 1)² points and says which to keep (the kept points stay in the sequence's order, so stratified)."""
+    kept, total = [], 0
+    for k in range(max_batches):
+        points, keep = place(r_sequence(batch, 2, seed, start=k * batch))
+        kept.append(points[keep])
+        total += int(np.count_nonzero(keep))
+        if total >= n:
+            break
+    return np.concatenate(kept)[:n]
 
 
 def unit_square_samples(n: int, seed: int = 0) -> np.ndarray:
@@ -179,16 +193,11 @@ def region_disk_samples(n: int, box, radius: float, seed: int = 0) -> np.ndarray
     """n points uniform over the part of the disk of `radius` inside `box` (x0, x1, y0, y1): `r_sequence`
     points of the box, those outside the disk left out (the sequence stays stratified under the cut)."""
     lo, span = np.array([box[0], box[2]]), np.array([box[1] - box[0], box[3] - box[2]])
-    kept, total = [], 0
-    batch = max(4 * n, 256)
-    while total < n:
-        q = lo + r_sequence(batch * (len(kept) + 1), 2, seed)[batch * len(kept):] * span
-        q = q[np.einsum("ij,ij->i", q, q) <= radius * radius]
-        kept.append(q)
-        total += len(q)
-        if len(kept) > 64:
-            break
-    return np.concatenate(kept)[:n]
+
+    def place(u):
+        q = lo + u * span
+        return q, np.einsum("ij,ij->i", q, q) <= radius * radius
+    return _kept_points(n, seed, max(4 * n, 256), place, max_batches=65)
 
 
 def disk_share(box, radius: float, seed: int = 0) -> float:
@@ -252,12 +261,10 @@ def near_area_samples(light: Light, n: int, receivers, seed: int = 0):
         rho = h * np.sqrt(np.maximum(1.0 / (1.0 - q[:, 0] * mass_max) ** 2 - 1.0, 0.0))
         return foot + rho[:, None] * np.stack([np.cos(2 * np.pi * q[:, 1]), np.sin(2 * np.pi * q[:, 1])], axis=1)
 
-    warped, start = [], 0
-    while sum(len(w) for w in warped) < n - n_uniform and start < 64 * n:
-        xy = warp(r_sequence(start + 4 * n, 2, seed + 1)[start:])     # the next 4n points of one sequence
-        start += 4 * n
-        warped.append(xy[_inside_shape(light, xy)])
-    warped = np.concatenate(warped)[:n - n_uniform]
+    def place(q):
+        xy = warp(q)
+        return xy, _inside_shape(light, xy)
+    warped = _kept_points(n - n_uniform, seed + 1, 4 * n, place, max_batches=16)
     if len(warped) < n - n_uniform:
         return None
 
@@ -339,19 +346,18 @@ class AveragedMaps(Technique):
         spot["u_soft_disk"] = (0.0, 0.0, 0.0, -1.0)
         # Sample sets: every receiver from `offsets`, except for a true sphere, whose receivers outside it
         # read maps without the casters inside it and whose receivers inside it sample its surface.
-        sets = [(offsets, None, SIDE_ALL)]
-        factors = {id(offsets): relative}
+        sets = [(offsets, relative, None, SIDE_ALL)]
         if true_sphere:
             clip, inside = _sphere_clip(light, lc.receivers)
-            sets = ([(offsets, clip, SIDE_OUTSIDE)] if clip else []) + \
-                   ([(sphere_surface(n, s.seed) * light.radius, None, SIDE_INSIDE)] if inside else [])
-        total = sum(len(o) for o, _, _ in sets)
+            sets = ([(offsets, relative, clip, SIDE_OUTSIDE)] if clip else []) + \
+                   ([(sphere_surface(n, s.seed) * light.radius, None, None, SIDE_INSIDE)] if inside else [])
+        total = sum(len(o) for o, *_ in sets)
         # The classes come from the centre's map with every caster: not those of a true sphere's sets.
         classes = lc.structures.get(LIT_UMBRA) if not true_sphere else None
         skip = {}, {"EARLY_SKIP": 0}
         done = 0
-        for set_offsets, clip, side in sets:
-            samples = self._samples(frame, lc, set_offsets, factors.get(id(set_offsets)))
+        for set_offsets, set_relative, clip, side in sets:
+            samples = self._samples(frame, lc, set_offsets, set_relative)
             if soft_disk:
                 # accumulate.comp soft_disk_weight: the axis of the disk the offsets lie on (the sample views'
                 # Z: each keeps the light's frame), none when they fill the ball
