@@ -505,7 +505,7 @@ Pixel make_pixel(ivec2 px) {
     Pixel p;
     p.r = pixel_receiver(px);
     p.d = p.r.map.z;
-    p.tex = (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
+    p.tex = map_texel_window();
     p.tp = window_coords(p.r.local);
     p.shading = view_direction(texelFetch(g_normal, px, 0).xyz);
     p.px = px;

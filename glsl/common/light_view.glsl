@@ -27,6 +27,16 @@ vec2 window_coords(vec3 l) {
     return u_light_ortho == 1 ? l.xy : l.xy / depth;
 }
 
+// Window units per texel along each axis, and the window position of a map position (texels, 0 … size):
+// the inverse of map_coords' first two coordinates.
+vec2 map_texel_window() {
+    return (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
+}
+
+vec2 map_window(vec2 map_pos) {
+    return u_light_window.xz + map_pos * map_texel_window();
+}
+
 // Map texel coordinates (0 … size) and linear depth of a light-local point.
 vec3 map_coords(vec3 l) {
     vec2 w = window_coords(l);
@@ -118,6 +128,21 @@ float no_blocker_depth() {
     return u_light_ortho == 1 ? -NO_OCCLUDER : 0.0;
 }
 
+// The plane dot(n, x) = c (light frame) along the map ray through `map_pos`: a point of the ray at depth z
+// lies slope·z + offset above the plane (n's side). Returns (slope, offset); the ray crosses the plane at
+// depth −offset/slope. Every test of a map ray against a receiver's plane starts from this.
+vec2 plane_along_map_ray(vec3 n, float c, vec2 map_pos) {
+    vec2 w = map_window(map_pos);
+    return u_light_ortho == 1 ? vec2(-n.z, dot(n.xy, w) - c)     // the ray's point at depth z: (w, −z)
+                              : vec2(dot(n.xy, w) - n.z, -c);    // the ray's point at depth z: z·(w, −1)
+}
+
+// Whether the view's origin (the light's centre: the eye at depth 0, or for a sun the direction towards
+// it, depth → −∞) lies above the receiver's tangent plane.
+bool centre_above_plane(Receiver r) {
+    return u_light_ortho == 1 ? r.normal.z > 1e-6 : dot(r.normal, r.local) < 0.0;
+}
+
 // Depth along the map ray through `map_pos` below which a surface lies on the light's side of the receiver's
 // tangent plane, less the bias: what a texel there must be nearer than to shadow the receiver. A ray from the
 // receiver to a light point above its tangent plane stays above that plane, so nothing below it (the
@@ -126,22 +151,14 @@ float no_blocker_depth() {
 // kernel (receiver-plane depth bias). When the map's origin lies on or below the plane, no ray of the map
 // reaches the receiver from above it: nothing in the map counts as a blocker (no_blocker_depth).
 float receiver_depth_at(Receiver r, vec2 map_pos) {
-    vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
-    float np = dot(r.normal, r.local);
     // Nothing beyond the receiver's own depth counts: a texel ray that runs past the receiver without meeting
     // its plane (grazing) hits surfaces behind it, which cannot shadow it.
     float far = r.map.z;
-    float z;
-    if (u_light_ortho == 1) {
-        // point (w, -z): above the plane where n.xy·w − n.z·z > np; the light is above when n.z > 0
-        if (r.normal.z <= 1e-6) return r.through_surface ? far - r.bias : no_blocker_depth();
-        z = (r.normal.x * w.x + r.normal.y * w.y - np) / r.normal.z;
-    } else {
-        // point z·(w, −1): above the plane where z·den > np; the light (the origin) is above when np < 0
-        if (np >= 0.0) return r.through_surface ? far - r.bias : no_blocker_depth();
-        float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
-        z = den < 0.0 ? np / den : far;     // a ray that never meets the plane stays above it
-    }
+    if (!centre_above_plane(r)) return r.through_surface ? far - r.bias : no_blocker_depth();
+    vec2 h = plane_along_map_ray(r.normal, dot(r.normal, r.local), map_pos);
+    // With the origin above, the ray descends through the plane where slope < 0; one that never meets the
+    // plane stays above it
+    float z = h.x < 0.0 ? -h.y / h.x : far;
     return min(z, far) - r.bias;
 }
 
@@ -153,18 +170,9 @@ float receiver_depth_at(Receiver r, vec2 map_pos) {
 // the plane off the triangle (grazing, near an edge) finds the map farther than the plane: not stopped here.
 bool own_surface_blocks(Receiver r, float stored, vec2 map_pos) {
     if (!r.through_surface || u_terminator_offset <= 0.0) return false;
-    vec2 w = u_light_window.xz + map_pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
-    float z;
-    if (u_light_ortho == 1) {
-        // point (w, -z) on the plane: n.xy·w − n.z·z = own_plane
-        if (abs(r.normal.z) <= 1e-6) return false;
-        z = (r.normal.x * w.x + r.normal.y * w.y - r.own_plane) / r.normal.z;
-    } else {
-        // point z·(w, −1) on the plane: z·den = own_plane
-        float den = r.normal.x * w.x + r.normal.y * w.y - r.normal.z;
-        if (abs(den) <= 1e-12) return false;
-        z = r.own_plane / den;
-    }
+    vec2 h = plane_along_map_ray(r.normal, r.own_plane, map_pos);
+    if (abs(h.x) <= 1e-9) return false;     // a ray along the plane
+    float z = -h.y / h.x;
     return z > 0.0 && stored <= z + r.bias;
 }
 

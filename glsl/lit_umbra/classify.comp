@@ -110,11 +110,6 @@ bool umbra_gap(Receiver r, ivec2 px, float d, float rho, float slack, float tan_
     return margin > r.bias + u_bias * tw * (0.5 + tan_max) + 2.0 * u_normal_offset * tw * (1.0 + tan_max) + slack;
 }
 
-// Whether the light's centre lies above the receiver's tangent plane (receiver_depth_at's own test).
-bool centre_above_plane(Receiver r) {
-    return u_light_ortho == 1 ? r.normal.z > 1e-6 : dot(r.normal, r.local) < 0.0;
-}
-
 float classify(ivec2 px) {
     Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
     float d = r.map.z;

@@ -22,15 +22,6 @@ uniform vec2 u_half;                // light half extent (bounding rectangle for
 uniform int u_ortho;
 uniform float u_bias_texels;        // relative depth gap: a patch occludes only if zo < zr·(1 − u_bias_texels)
 
-vec2 ssm_texel_tan() {
-    return (u_light_window.yw - u_light_window.xz) / vec2(u_map_size);
-}
-
-// Window position of a texel-space point.
-vec2 ssm_window(vec2 texel_pos) {
-    return u_light_window.xz + texel_pos * ssm_texel_tan();
-}
-
 bool depth_valid(float z) {
     return z > 0.0 && z < EMPTY_DEPTH;
 }
@@ -57,21 +48,12 @@ bool patch_can_shadow(Receiver r, vec2 patch_texel, float zo) {
     // With the light's centre on or below the plane the shared rule lets nothing count (every ray from the
     // centre meets the receiver from below), but part of an area light or a wide sun may still be above it,
     // and a patch above the plane, between it and the receiver, hides some of that part: above the plane
-    // along the patch's ray means beyond the depth zc where the ray crosses it.
-    if (r.through_surface) return false;        // receiver_depth_at already let everything nearer count
-    vec2 w = ssm_window(patch_texel + 0.5);
-    float np = dot(r.normal, r.local), zc;
-    if (u_light_ortho == 1) {
-        if (r.normal.z > 1e-6) return false;    // the sun's centre above the plane: the shared rule decided
-        // point (w, -z): height over the plane n.xy·w − np − n.z·z, growing with z as n.z ≤ 0
-        zc = (np - dot(r.normal.xy, w)) / max(-r.normal.z, 1e-9);  // 1e-9: a plane along the rays
-    } else {
-        if (np < 0.0) return false;             // the centre above the plane: the shared rule decided
-        float den = dot(r.normal.xy, w) - r.normal.z;   // point z·(w, −1): above the plane where z·den > np
-        if (den <= 0.0) return false;
-        zc = np / den;
-    }
-    return zo > zc + r.bias && zo < -r.local.z - r.bias;
+    // along the patch's ray.
+    if (r.through_surface || centre_above_plane(r)) return false;   // the shared rule decided
+    // Above the plane by more than the bias at the patch's depth (beyond the crossing, for a ray rising
+    // through the plane), and in front of the receiver.
+    vec2 h = plane_along_map_ray(r.normal, dot(r.normal, r.local), patch_texel + 0.5);
+    return h.x * (zo - r.bias) + h.y > 0.0 && zo < -r.local.z - r.bias;
 }
 
 #if SSM_WEIGHTED
@@ -119,12 +101,12 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
 // centre `t_texel`, depth zr. 0 when the patch is not strictly in front of the receiver.
 float patch_occlusion(vec2 patch_texel, float zo, vec2 t_texel, float zr) {
     if (!depth_valid(zr)) return 0.0;
-    vec2 tt = ssm_texel_tan();
+    vec2 tt = map_texel_window();
     if (zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     float s = penumbra_spread(zo, zr, u_ortho);
     if (!(s > 0.0)) return 0.0;
-    vec2 t = ssm_window(t_texel);
-    vec2 lo = ssm_window(patch_texel), hi = lo + tt;
+    vec2 t = map_window(t_texel);
+    vec2 lo = map_window(patch_texel), hi = lo + tt;
     // Light [-h, h] → [0, 1]:  a = 1/2 + (lo - t) / (2 h s).  Clamping keeps the infinities finite.
     vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);    // 1e-9 as in weighted_fraction
     vec4 ab = clamp(vec4(0.5) + vec4(lo - t, hi - t) * k.xyxy, 0.0, 1.0);

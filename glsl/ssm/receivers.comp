@@ -32,14 +32,9 @@ layout(rgba32f, binding = 5) uniform writeonly image2D u_far_b;
 // with normal n meets it, within `reach` of the point's own depth (a plane seen edge-on meets it nowhere
 // near). The scatter puts a texel's receiver at the texel centre, as the paper's rasterised map does.
 float plane_depth(vec3 point, vec3 n, vec2 pos, float reach) {
-    vec2 w = u_light_window.xz + pos / vec2(u_map_size) * (u_light_window.yw - u_light_window.xz);
-    float np = dot(n, point), z0 = -point.z, z;
-    if (u_light_ortho == 1) {
-        z = abs(n.z) > 1e-6 ? (n.x * w.x + n.y * w.y - np) / n.z : z0;
-    } else {
-        float den = n.x * w.x + n.y * w.y - n.z;
-        z = abs(den) > 1e-9 ? np / den : z0;
-    }
+    vec2 h = plane_along_map_ray(n, dot(n, point), pos);
+    float z0 = -point.z;
+    float z = abs(h.x) > 1e-9 ? -h.y / h.x : z0;
     return clamp(z, z0 - reach, z0 + reach);
 }
 

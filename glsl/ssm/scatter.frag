@@ -18,9 +18,9 @@ void main() {
     f_occlusion = vec2(0.0);
     if (!depth_valid(na.x)) discard;    // no receiver the camera sees in this texel
     vec4 fa = texelFetch(u_far_a, texel, 0);
-    vec2 t = ssm_window(gl_FragCoord.xy);
+    vec2 t = map_window(gl_FragCoord.xy);
     vec4 d = v_lohi - t.xyxy;
-    vec2 tt = ssm_texel_tan();
+    vec2 tt = map_texel_window();
     float tw1 = max(tt.x, tt.y);
     vec2 inv_2h = 0.5 / max(u_half, vec2(1e-9));    // metres (tan for a sun): a zero-size light still divides
     float on = patch_can_shadow(ssm_receiver(na, texelFetch(u_near_b, texel, 0)), v_patch, v_depth.x)
