@@ -57,6 +57,10 @@ class Technique:
     coarse: dict = {}
     # Configurations the benchmark's --sweep traces (settings changes; RenderSettings fields or options).
     sweep: tuple[dict, ...] = MAP_SIZE_SWEEP
+    # The technique casts one light point's hard shadow (it ignores the light's extent): where a sun's centre is
+    # below a receiver's horizon, the pipeline gives that receiver a view from a rim point it sees instead
+    # (core.lightview.sun_rim_faces).
+    one_light_point = False
 
     def needs_for(self, settings) -> tuple:
         """The structures to build for `settings` (names, or structures.need(NAME, **params) where options
