@@ -131,7 +131,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                 faces = lit_xyz = None
                 # Only a clamped view can leave lit pixels outside, and only a wide light's rim can light what
                 # its centre does not reach: read the lit pixels back then.
-                rim = technique.one_light_point and light.kind == SUN and light.angle > 0.0
+                rim = technique.sun_rim_views and light.kind == SUN and light.angle > 0.0
                 if view.clamped or rim:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]

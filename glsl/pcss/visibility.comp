@@ -34,6 +34,16 @@ vec2 penumbra_texels(float z, float d) {
     return min(u_light_half * spread / u_texel_tan, vec2(u_max_radius));
 }
 
+// Whether kernel position k looks at a point of the light. Always so in the sun's own view (the kernel's disk
+// is the light's); a rim view (core.lightview.sun_rim_faces) centres the same disk on a point of the sun's edge,
+// and only the directions within the sun's half angle of its axis (-u_light_emit) are the sun's.
+bool in_light(vec2 k) {
+    if (u_light_ortho == 0) return true;
+    vec3 d = vec3(k * u_light_half, 1.0);
+    float cos_half = inversesqrt(1.0 + u_light_half.x * u_light_half.x);
+    return -dot(d, u_light_emit) >= cos_half * length(d) * (1.0 - 1e-5);
+}
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
@@ -53,7 +63,7 @@ void main() {
         float blocker_sum = 0.0, blocker_weight = 0.0;
         for (int i = 0; i < u_blocker_samples; ++i) {
             vec2 k = kernel_point(i, u_blocker_samples, u_light_round, 0.0);
-            float w = light_sample_weight(r, n, k) > 0.0 ? 1.0 : 0.0;
+            float w = light_sample_weight(r, n, k) > 0.0 && in_light(k) ? 1.0 : 0.0;
             if (w <= 0.0) continue;
             ivec2 t = ivec2(floor(r.map.xy + k * search));
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;
@@ -66,7 +76,7 @@ void main() {
             float sum = 0.0, total = 0.0;
             for (int i = 0; i < u_filter_samples; ++i) {
                 vec2 k = kernel_point(i, u_filter_samples, u_light_round, 0.0);
-                float w = light_sample_weight(r, n, k) > 0.0 ? 1.0 : 0.0;
+                float w = light_sample_weight(r, n, k) > 0.0 && in_light(k) ? 1.0 : 0.0;
                 if (w <= 0.0) continue;
                 sum += w * map_lit_bilinear_plane(u_depth_map, r.map.xy + k * radius, r);
                 total += w;
