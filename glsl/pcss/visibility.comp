@@ -44,6 +44,18 @@ bool in_light(vec2 k) {
     return -dot(d, u_light_emit) >= cos_half * length(d) * (1.0 - 1e-5);
 }
 
+// A tap's vote: 1 where its light point is above the receiver's horizon, else 0 (see the top). In a rim view
+// the receiver sees the sun only near its horizon and the disk of tangents reaches far off its axis (tan 5 at a
+// 2.75 rad sun), so there the taps weigh the irradiance their direction carries (light_sample_weight: the
+// cos³θ density with the receiver's cosine). Measured against the plain vote: the closed ball of
+// tests/test_wide_sun.py 0.039 -> 0.037, fuzz 7119 0.26 -> 0.23, 8335 0.234 -> 0.224 (mae_shadow).
+float tap_weight(Receiver r, vec3 n, vec2 k) {
+    if (!in_light(k)) return 0.0;
+    float w = light_sample_weight(r, n, k);
+    bool rim_view = u_light_ortho == 1 && u_light_emit.z > -0.9999;
+    return rim_view ? w : (w > 0.0 ? 1.0 : 0.0);
+}
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
@@ -63,7 +75,7 @@ void main() {
         float blocker_sum = 0.0, blocker_weight = 0.0;
         for (int i = 0; i < u_blocker_samples; ++i) {
             vec2 k = kernel_point(i, u_blocker_samples, u_light_round, 0.0);
-            float w = light_sample_weight(r, n, k) > 0.0 && in_light(k) ? 1.0 : 0.0;
+            float w = tap_weight(r, n, k);
             if (w <= 0.0) continue;
             ivec2 t = ivec2(floor(r.map.xy + k * search));
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;
@@ -76,7 +88,7 @@ void main() {
             float sum = 0.0, total = 0.0;
             for (int i = 0; i < u_filter_samples; ++i) {
                 vec2 k = kernel_point(i, u_filter_samples, u_light_round, 0.0);
-                float w = light_sample_weight(r, n, k) > 0.0 && in_light(k) ? 1.0 : 0.0;
+                float w = tap_weight(r, n, k);
                 if (w <= 0.0) continue;
                 sum += w * map_lit_bilinear_plane(u_depth_map, r.map.xy + k * radius, r);
                 total += w;
