@@ -115,3 +115,31 @@ def test_averaged_maps_match_the_oracle_in_the_room(room):
     mae = float(np.mean(np.abs(v[shadow] - ref[shadow])))
     # 0.03: 64 light samples against the oracle's 144 (both discretise the light), measured 0.01-0.02
     assert mae < 0.03, mae
+
+
+def test_sun_rim_views_take_the_receivers_whose_horizon_hides_the_centre():
+    """core.lightview.sun_rim_faces: receivers with the sun's centre below their horizon go to a view from the
+    rim point of the disk nearest their normal, which lies above their horizon while the disk reaches it; the
+    others keep the centre's view."""
+    from penumbra.engine.core.snapshot import SUN, Light
+    rng = np.random.default_rng(5)
+    angle = 2.4
+    light = Light("Sun", SUN, np.eye(4), np.ones(3), 1.0, angle=angle)   # towards the sun: world +z
+    normals = rng.normal(size=(3000, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    pts = rng.uniform(-2, 2, (3000, 3))
+    view = lightview.fit(light, (pts.min(axis=0), pts.max(axis=0)), None, 256)
+    faces = lightview.sun_rim_faces(light, view, normals, normals)
+    assert faces[0][0] is None and (faces[0][1] == (normals[:, 2] > 0.0)).all()
+    assert (np.sum([mask for _, mask in faces], axis=0) == 1).all(), "every point belongs to exactly one view"
+    assert len(faces) == 1 + lightview.SUN_RIM_VIEWS
+    polar = np.arccos(normals[:, 2])
+    for rotation, mask in faces[1:]:
+        to_rim = rotation[2]                    # the view's +z, towards its rim point, in the sun's frame
+        assert np.isclose(np.arccos(to_rim[2]), angle / 2)
+        # The rim point nearest a normal makes cos(polar − angle/2) with it; rounding the azimuth to 45° costs
+        # at most 1 − cos 22.5° < 0.08 of that.
+        seen = mask & (np.cos(polar - angle / 2) > 0.08)
+        assert seen.sum() > 100 and (normals[seen] @ to_rim > 0.0).all()
+    facing = normals * [1, 1, 0] + [0, 0, 0.5]      # every normal above the horizon: nothing to add
+    assert lightview.sun_rim_faces(light, view, facing, facing) is None

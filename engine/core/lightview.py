@@ -13,6 +13,7 @@ import numpy as np
 
 from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 from .light_shape import penumbra_spread
+from .shading import SUN_MAX_HALF
 from .matrices import mat_uniform
 
 MAX_HALF_ANGLE = np.radians(80.0)   # a single perspective map cannot cover a hemisphere; beyond this it clamps
@@ -220,6 +221,39 @@ def split_faces(view: LightView, points: np.ndarray) -> list[tuple[np.ndarray | 
     index = np.where(outside, 2 * axis + (local[np.arange(len(local)), axis] > 0), -1)
     return [(None, ~outside)] * bool((~outside).any()) + [
         (face_rotation(CUBE_FACES[i]), index == i) for i in range(6) if (index == i).any()]
+
+
+# A sun's rim views: how many points around the edge of its disk stand for the disk where its centre is hidden.
+SUN_RIM_VIEWS = 8
+
+
+def sun_rim_faces(light: Light, view: LightView, geometric: np.ndarray, shading: np.ndarray
+                  ) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
+    """For the techniques that cast one light point's hard shadow (HARD, PCF, SPSM), the views of a sun whose
+    lit receivers include some with its centre below their horizon (geometric and shading normals, N × 3 world,
+    both at or below it): the centre's map then holds nothing on their rays to the part of the disk they see,
+    and its tangent-plane rule leaves them lit, even inside a closed room. Such a receiver takes instead the
+    view from the point of the disk's rim nearest its geometric normal (the brightest point it sees: the rim
+    point in the plane of the centre and the normal), rounded to one of SUN_RIM_VIEWS azimuths. Returned as
+    split_faces does (rotation from the sun's frame, mask of the points each view owns; None: the centre's
+    view for the rest); None when no receiver has the centre hidden."""
+    if light.kind != SUN or light.angle <= 0.0 or len(geometric) == 0:
+        return None
+    turn = np.asarray(view.view, float)[:3, :3]         # world → the sun's frame (+z towards the sun)
+    ng, n = np.asarray(geometric, float) @ turn.T, np.asarray(shading, float) @ turn.T
+    hidden = (ng[:, 2] <= 1e-6) & (n[:, 2] <= 0.0)     # light_view.glsl: no texel could shadow them
+    if not hidden.any():
+        return None
+    step = 2.0 * np.pi / SUN_RIM_VIEWS
+    rim = np.round(np.arctan2(ng[:, 1], ng[:, 0]) / step).astype(int) % SUN_RIM_VIEWS
+    half = min(light.angle / 2.0, SUN_MAX_HALF)
+    faces = [(None, ~hidden)] * bool((~hidden).any())
+    for i in range(SUN_RIM_VIEWS):
+        mask = hidden & (rim == i)
+        if mask.any():
+            to_rim = np.array([np.sin(half) * np.cos(i * step), np.sin(half) * np.sin(i * step), np.cos(half)])
+            faces.append((face_rotation(-to_rim), mask))
+    return faces
 
 
 def to_local(world_to_local: np.ndarray, pts: np.ndarray) -> np.ndarray:

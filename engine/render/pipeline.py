@@ -18,7 +18,7 @@ from ..gpu.geometry import SceneGeometry
 from ..gpu.multisample import shade_edges
 from ..core.settings import RenderSettings
 from ..core.shading import light_defines, light_uniforms
-from ..core.snapshot import SceneSnapshot
+from ..core.snapshot import SUN, SceneSnapshot
 from ..techniques import TECHNIQUES, get as get_technique  # noqa: F401  (TECHNIQUES: the layers above list them here)
 from .. import structures
 from ..techniques.base import LightContext
@@ -129,10 +129,18 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
                 faces = lit_xyz = None
-                if view.clamped:    # only a clamped view can leave lit pixels outside: read them back then
+                # Only a clamped view can leave lit pixels outside, and only a wide light's rim can light what
+                # its centre does not reach: read the lit pixels back then.
+                rim = technique.sun_rim_views and light.kind == SUN and light.angle > 0.0
+                if view.clamped or rim:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
+                if view.clamped:
                     faces = lightview.split_faces(view, lit_xyz)
+                elif rim:
+                    g = frame.gbuffer
+                    faces = lightview.sun_rim_faces(light, view, frame.read(g["g_geometric"])[lit][:, :3],
+                                                    frame.read(g["g_normal"])[lit][:, :3])
             if faces is None:
                 rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
                                        stats, debug)
@@ -206,7 +214,8 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                      irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
     """A light whose lit pixels do not fit one view: its single view for the pixels it holds, and one view per
     cube face for the rest (see lightview.split_faces), each fitted to the receivers it owns, with its own
-    structures; every pixel takes the visibility of the view that owns it, so none is left outside every map."""
+    structures; every pixel takes the visibility of the view that owns it, so none is left outside every map.
+    A sun's rim views (lightview.sun_rim_faces) take the same path: rotations of its frame, as faces are."""
     t = frame.timings
     size = (frame.width, frame.height)
     owner = np.full(lit.shape, -1.0, np.float32)

@@ -7,6 +7,7 @@ from .base import DEPTH_MAP, MAP_SIZE_SWEEP, Option, Technique, light_shape_unif
 
 class Pcss(Technique):
     identifier = "PCSS"
+    sun_rim_views = True
     label = "PCSS"
     description = "Blocker search and variable-size PCF (Fernando 2005): plausible, not exact, soft shadows"
     options = (
