@@ -207,6 +207,14 @@ class Backprojection(Technique):
                "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
         Option("bp_query_growth", True, "Over-precision fix", "Grow the queried area to the support of the "
                "micro-occluders of the level it will use before classifying (2008, §6)"),
+        Option("bp_coarse_fit", "NONE", "Coarse refit", "Coarse micro-occluders (micropatches, microrects) "
+               "fitted per receiver to their finer-level cells that occlude it (not in the papers)",
+               items=(("NONE", "None (papers)", "The cell or microrect at the minimum depth of all its texels"),
+                      ("EXTENT", "Extent", "Shrunk to the occluding finer cells, at their minimum depth"),
+                      ("MEAN", "Extent and mean depth", "Shrunk to the occluding finer cells, at their mean "
+                       "depth"))),
+        Option("bp_fit_levels", 1, "Refit levels", "Coarse refit: how many levels finer the occluding cells "
+               "are taken from (1: 2×2 cells per micropatch, 2: 4×4)", min=1, max=3),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
         Option("bp_filter_passes", 0, "Filter passes",
@@ -322,7 +330,10 @@ class Backprojection(Technique):
                    "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
                    "WEIGHTED": int(weighted),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
-                   "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER}
+                   "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER,
+                   "REFIT": {"NONE": 0, "EXTENT": 1, "MEAN": 2}[o["bp_coarse_fit"]] * int(
+                       primitive != PRIMITIVE_MICROQUAD),
+                   "REFIT_LEVELS": int(o["bp_fit_levels"])}
         frame.progress.check()
         if blend:
             with frame.timings.stage("bp_loq"):

@@ -55,6 +55,12 @@
 #ifndef GROW
 #define GROW 0
 #endif
+#ifndef REFIT
+#define REFIT 0                 // 1/2: refit coarse micro-occluders to their occluding finer cells (see refit)
+#endif
+#ifndef REFIT_LEVELS
+#define REFIT_LEVELS 1          // REFIT: how many levels finer the refit looks
+#endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
 #endif
@@ -379,6 +385,42 @@ bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
     return z < m;
 }
 
+#if REFIT
+// Coarse refit (our addition to the 2007/2008 coarse levels): a level-l micro-occluder over [p0, p1) at the
+// minimum depth z of all its texels also turns the texels that do not occlude this receiver (the ground
+// beside a silhouette, the receiver's own surface) into occluders at z, and lifts the deeper ones towards
+// the light: too large, too central a backprojection (over-darkening). Per receiver, the level-(l − 1)
+// cells (HSM) overlapping it that occlude at their own depth are kept: the extent shrinks to their bounding
+// box (within [p0, p1)), the depth becomes their minimum (REFIT 1, still no deeper than any occluding
+// texel) or their mean (REFIT 2: deeper texels no longer lifted to the nearest). False: none occludes.
+bool refit(Pixel p, int layer, int l, inout float z, inout vec2 p0, inout vec2 p1) {
+    int f = max(l - REFIT_LEVELS, 0);
+    float s = float(1 << f);
+    const int SIDE = (1 << REFIT_LEVELS) + 1;   // microrect extents span at most this many finer cells
+    ivec2 c0 = ivec2(p0) >> f, c1 = (ivec2(ceil(p1)) - 1) >> f;
+    c1 = min(c1, c0 + SIDE - 1);
+    vec2 lo = vec2(1e30), hi = vec2(-1e30);
+    float zmin = NO_OCCLUDER, zsum = 0.0, n = 0.0;
+    for (int k = 0; k < SIDE * SIDE; ++k) {
+        ivec2 c = c0 + ivec2(k % SIDE, k / SIDE);
+        if (any(greaterThan(c, c1))) continue;
+        vec2 q0 = max(vec2(c) * s, p0), q1 = min(vec2(c) * s + s, p1);
+        float zc = cell_depth(layer, f, c);
+        if (!cell_occludes(p, zc, q0, q1, f)) continue;
+        lo = min(lo, q0);
+        hi = max(hi, q1);
+        zmin = min(zmin, zc);
+        zsum += zc;
+        n += 1.0;
+    }
+    if (n == 0.0) return false;
+    p0 = lo;
+    p1 = hi;
+    z = REFIT == 2 ? max(zsum / n, z) : max(zmin, z);
+    return true;
+}
+#endif
+
 vec2 window_at(Pixel p, vec2 pos) {
     return u_light_window.xz + pos * p.tex;
 }
@@ -398,6 +440,9 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if REFIT
+    if (l > 0 && !refit(p, layer, l, z, p0, p1)) return false;
+#endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
     b = backproject(p, w1, z);
@@ -425,6 +470,9 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if REFIT
+    if (l > 0 && !refit(p, layer, l, z, p0, p1)) return false;
+#endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
     b = backproject(p, w1, z);
