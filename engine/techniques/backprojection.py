@@ -212,7 +212,8 @@ class Backprojection(Technique):
                items=(("NONE", "None (papers)", "The cell or microrect at the minimum depth of all its texels"),
                       ("EXTENT", "Extent", "Shrunk to the occluding finer cells, at their minimum depth"),
                       ("MEAN", "Extent and mean depth", "Shrunk to the occluding finer cells, at their mean "
-                       "depth"))),
+                       "depth"),
+                      ("DEPTH", "Mean depth", "Its own extent, at the mean depth of its occluding finer cells"))),
         Option("bp_fit_levels", 1, "Refit levels", "Coarse refit: how many levels finer the occluding cells "
                "are taken from (1: 2×2 cells per micropatch, 2: 4×4)", min=1, max=3),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
@@ -331,7 +332,7 @@ class Backprojection(Technique):
                    "WEIGHTED": int(weighted),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
                    "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER,
-                   "REFIT": {"NONE": 0, "EXTENT": 1, "MEAN": 2}[o["bp_coarse_fit"]] * int(
+                   "REFIT": {"NONE": 0, "EXTENT": 1, "MEAN": 2, "DEPTH": 3}[o["bp_coarse_fit"]] * int(
                        primitive != PRIMITIVE_MICROQUAD),
                    "REFIT_LEVELS": int(o["bp_fit_levels"])}
         frame.progress.check()

@@ -392,7 +392,8 @@ bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
 // the light: too large, too central a backprojection (over-darkening). Per receiver, the level-(l − 1)
 // cells (HSM) overlapping it that occlude at their own depth are kept: the extent shrinks to their bounding
 // box (within [p0, p1)), the depth becomes their minimum (REFIT 1, still no deeper than any occluding
-// texel) or their mean (REFIT 2: deeper texels no longer lifted to the nearest). False: none occludes.
+// texel) or their mean (REFIT 2: deeper texels no longer lifted to the nearest); REFIT 3 keeps the extent
+// and takes only the mean depth. False: none occludes.
 bool refit(Pixel p, int layer, int l, inout float z, inout vec2 p0, inout vec2 p1) {
     int f = max(l - REFIT_LEVELS, 0);
     float s = float(1 << f);
@@ -414,9 +415,11 @@ bool refit(Pixel p, int layer, int l, inout float z, inout vec2 p0, inout vec2 p
         n += 1.0;
     }
     if (n == 0.0) return false;
-    p0 = lo;
-    p1 = hi;
-    z = REFIT == 2 ? max(zsum / n, z) : max(zmin, z);
+    if (REFIT != 3) {
+        p0 = lo;
+        p1 = hi;
+    }
+    z = REFIT == 1 ? max(zmin, z) : max(zsum / n, z);
     return true;
 }
 #endif
