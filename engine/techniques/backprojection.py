@@ -214,8 +214,6 @@ class Backprojection(Technique):
                       ("MEAN", "Extent and mean depth", "Shrunk to the occluding finer cells, at their mean "
                        "depth"),
                       ("DEPTH", "Mean depth", "Its own extent, at the mean depth of its occluding finer cells"))),
-        Option("bp_fit_levels", 1, "Refit levels", "Coarse refit: how many levels finer the occluding cells "
-               "are taken from (1: 2×2 cells per micropatch, 2: 4×4)", min=1, max=3),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
         Option("bp_filter_passes", 0, "Filter passes",
@@ -333,8 +331,7 @@ class Backprojection(Technique):
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
                    "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER,
                    "REFIT": {"NONE": 0, "EXTENT": 1, "MEAN": 2, "DEPTH": 3}[o["bp_coarse_fit"]] * int(
-                       primitive != PRIMITIVE_MICROQUAD),
-                   "REFIT_LEVELS": int(o["bp_fit_levels"])}
+                       primitive != PRIMITIVE_MICROQUAD)}
         frame.progress.check()
         if blend:
             with frame.timings.stage("bp_loq"):
