@@ -12,6 +12,9 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
   samples (§3: 8×8, 16×16, 16×16 jittered = 8×8 tiling of the 2×2 RGSS pattern, 32×32); V = unset / all;
 * at most b×b micro-occluders per layer: a coarser hierarchy level, sampled on its own grid, when the area is
   larger (§5);
+* optionally (bp_coarse_fit, ours) a coarse micropatch/microrect refitted per receiver to its finer-level
+  parts that occlude it: their bounding box, at their minimum or mean depth, instead of the whole cell at the
+  minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces the light grazes);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
 * round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
@@ -243,7 +246,9 @@ class Backprojection(Technique):
         + [{"bp_budget_map": "UNBOUNDED"}, {"bp_budget_map": "BORDER", "bp_budget": 12, "bp_budget_border": 5},
            {"bp_blend": True}, {"bp_query_growth": True}, {"bp_primitive": "MICRORECT"},
            {"bp_refinement": "YSM"},
-           {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}])
+           {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}]
+        # Ours: coarse micro-occluders refitted to their occluding finer parts.
+        + [{"bp_coarse_fit": "MEAN"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"}])
 
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
