@@ -12,6 +12,9 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
   samples (§3: 8×8, 16×16, 16×16 jittered = 8×8 tiling of the 2×2 RGSS pattern, 32×32); V = unset / all;
 * at most b×b micro-occluders per layer: a coarser hierarchy level, sampled on its own grid, when the area is
   larger (§5);
+* optionally (bp_coarse_fit, ours) a coarse micropatch/microrect refitted per receiver to its finer-level
+  parts that occlude it: their bounding box, at their minimum or mean depth, instead of the whole cell at the
+  minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces the light grazes);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
 * round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
@@ -207,6 +210,13 @@ class Backprojection(Technique):
                "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
         Option("bp_query_growth", True, "Over-precision fix", "Grow the queried area to the support of the "
                "micro-occluders of the level it will use before classifying (2008, §6)"),
+        Option("bp_coarse_fit", "NONE", "Coarse refit", "Coarse micro-occluders (micropatches, microrects) "
+               "fitted per receiver to their finer-level cells that occlude it (not in the papers)",
+               items=(("NONE", "None (papers)", "The cell or microrect at the minimum depth of all its texels"),
+                      ("EXTENT", "Extent", "Shrunk to the occluding finer cells, at their minimum depth"),
+                      ("MEAN", "Extent and mean depth", "Shrunk to the occluding finer cells, at their mean "
+                       "depth"),
+                      ("DEPTH", "Mean depth", "Its own extent, at the mean depth of its occluding finer cells"))),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
         Option("bp_filter_passes", 0, "Filter passes",
@@ -236,7 +246,9 @@ class Backprojection(Technique):
         + [{"bp_budget_map": "UNBOUNDED"}, {"bp_budget_map": "BORDER", "bp_budget": 12, "bp_budget_border": 5},
            {"bp_blend": True}, {"bp_query_growth": True}, {"bp_primitive": "MICRORECT"},
            {"bp_refinement": "YSM"},
-           {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}])
+           {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}]
+        # Ours: coarse micro-occluders refitted to their occluding finer parts.
+        + [{"bp_coarse_fit": "MEAN"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"}])
 
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
@@ -322,7 +334,9 @@ class Backprojection(Technique):
                    "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
                    "WEIGHTED": int(weighted),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
-                   "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER}
+                   "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER,
+                   "REFIT": {"NONE": 0, "EXTENT": 1, "MEAN": 2, "DEPTH": 3}[o["bp_coarse_fit"]] * int(
+                       primitive != PRIMITIVE_MICROQUAD)}
         frame.progress.check()
         if blend:
             with frame.timings.stage("bp_loq"):

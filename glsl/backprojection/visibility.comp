@@ -55,6 +55,9 @@
 #ifndef GROW
 #define GROW 0
 #endif
+#ifndef REFIT
+#define REFIT 0                 // 1/2/3: refit coarse micro-occluders to their occluding finer cells (see refit)
+#endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
 #endif
@@ -379,6 +382,59 @@ bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
     return z < m;
 }
 
+#if REFIT
+// Coarse refit (our addition to the 2007/2008 coarse levels): a level-l micro-occluder over [p0, p1) at the
+// minimum depth z of all its texels also turns the texels that do not occlude this receiver (the ground
+// beside a silhouette, the receiver's own surface) into occluders at z, and lifts the deeper ones towards
+// the light: too large, too central a backprojection (over-darkening). Per receiver, its level-(l − 1)
+// parts that occlude at their own depth are kept: the extent shrinks to their bounding box (within
+// [p0, p1)), the depth becomes their minimum (REFIT 1: still no deeper than any occluding texel) or their
+// mean (REFIT 2: the deeper texels no longer lifted to the nearest); REFIT 3 keeps the extent and takes
+// only the mean depth. The parts: a micropatch's 2×2 cells of level l − 1; a microrect's level-(l − 1)
+// microrects among 2c + {−1, 0, 1}² whose reference point (level-0 texel j·2^(l−1)) lies in its extent,
+// which holds every microrect merged into it (each holds its own reference point, and the merge unites
+// extents), clipped to that extent. False: no part occludes.
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+const int REFIT_PARTS = 9;
+#else
+const int REFIT_PARTS = 4;
+#endif
+
+bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, inout vec2 p1) {
+    int f = l - 1;
+    vec2 lo = vec2(1e30), hi = vec2(-1e30);
+    float zmin = NO_OCCLUDER, zsum = 0.0, n = 0.0;
+    for (int k = 0; k < REFIT_PARTS; ++k) {
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+        ivec2 j = 2 * c + ivec2(k % 3 - 1, k / 3 - 1);
+        vec2 ref = vec2(j * (1 << f));
+        if (any(lessThan(ref, p0)) || any(greaterThanEqual(ref, p1))) continue;
+        vec4 e;
+        float zc = rect_depth(layer, f, j, e);
+        vec2 q0 = max(e.xy, p0), q1 = min(e.zw, p1);
+#else
+        ivec2 j = 2 * c + ivec2(k & 1, k >> 1);
+        vec2 q0 = vec2(j * (1 << f)), q1 = min(q0 + float(1 << f), p1);
+        if (any(greaterThanEqual(q0, p1))) continue;
+        float zc = cell_depth(layer, f, j);
+#endif
+        if (!cell_occludes(p, zc, q0, q1, f)) continue;
+        lo = min(lo, q0);
+        hi = max(hi, q1);
+        zmin = min(zmin, zc);
+        zsum += zc;
+        n += 1.0;
+    }
+    if (n == 0.0) return false;
+    if (REFIT != 3) {
+        p0 = lo;
+        p1 = hi;
+    }
+    z = REFIT == 1 ? max(zmin, z) : max(zsum / n, z);
+    return true;
+}
+#endif
+
 vec2 window_at(Pixel p, vec2 pos) {
     return u_light_window.xz + pos * p.tex;
 }
@@ -398,6 +454,9 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if REFIT
+    if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
+#endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
     b = backproject(p, w1, z);
@@ -425,6 +484,9 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if REFIT
+    if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
+#endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
     b = backproject(p, w1, z);
