@@ -202,17 +202,22 @@ def outside_view(view: LightView, points: np.ndarray) -> np.ndarray:
     return behind | (w[:, 0] < x0) | (w[:, 0] > x1) | (w[:, 1] < y0) | (w[:, 1] > y1)
 
 
-def split_faces(view: LightView, points: np.ndarray) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
+def split_faces(view: LightView, points: np.ndarray,
+                lifted: np.ndarray | None = None) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
     """When a light's single view had to be clamped and some lit points (N, 3, world) fall outside it: the views
     that hold them all, as
     [(rotation from the light's frame, or None for the single view itself; mask of the points it owns)].
     The single view keeps every point it holds; the others go to the cube faces around the light by the
     dominant axis of their direction from it (each at most 45° off its face's axis), only faces that own a
     point. None when the view was not clamped (its window holds every receiver a caster can shadow, so a
-    point outside it is lit for certain), when it holds every point, and for orthographic views."""
+    point outside it is lit for certain), when it holds every point, and for orthographic views. `lifted`
+    (N, 3): where each point's shadow ray leaves it (the terminator lift); the single view keeps a point
+    only if it holds that too, the face that owns it is chosen by the point itself."""
     if view.is_ortho or not view.clamped or len(points) == 0:
         return None
     outside = outside_view(view, points)
+    if lifted is not None:
+        outside |= outside_view(view, lifted)
     if not outside.any():
         return None
     local = to_local(view.view, points)
