@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
-from .light_shape import penumbra_spread
+from .light_shape import penumbra_spread, spot_cone_tans
 from .matrices import mat_uniform
 
 MAX_HALF_ANGLE = np.radians(80.0)   # a single perspective map cannot cover a hemisphere; beyond this it clamps
@@ -140,6 +140,15 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
         limit = np.tan(MAX_HALF_ANGLE)
         win_r, r_depth = _tangent_window(rec, near_floor)
         win_c, c_depth = _tangent_window(cas, near_floor)
+        nearest = float((-rec[:, 2]).min())
+        if light.kind == SPOT and face is None and nearest > max(light.radius, near_floor):
+            # A spot lights nothing past its cone (as its rays leave the emitter, kernel/light/spot.h): its
+            # receivers' window is the cone's, however far their box's corners reach. From the centre, a ray
+            # from a point of the emitter up to `radius` away reaches past that cone by radius/depth. Inside
+            # its sphere there is no cone: kept for receivers all in front of the light and past its radius.
+            tx, ty = spot_cone_tans(light)
+            spill = 0.0 if origin_local is not None else light.radius * (1.0 + max(tx, ty)) / nearest
+            win_r = _intersect(win_r, (-tx - spill, tx + spill, -ty - spill, ty + spill))
         z_c = max(c_depth.min(), near_floor)
         grow = half * max(penumbra_spread(z_c, max(r_depth.max(), z_c), False), 0.0)   # h · (1/z_occ − 1/z_rec)
     shadowable = _intersect(win_r, _widen(win_c, grow))
