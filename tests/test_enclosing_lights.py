@@ -14,6 +14,11 @@ numbers, as does the true sphere, now just over its bound; the r = 0.15 light of
 control. Tried and left out: each cube face sampling the disk through the centre across its own axis (the
 rays end on the emitter's plane as Cycles' do, but the disk is foreshortened up to 55° off the face axis)
 takes soft_disk_r4 from 0.181 to 0.116 and soft_disk_r2 from 0.047 to 0.050, still far over their bounds.
+Also tried: a ball sample's ray to a receiver is the ray of Cycles' disk point on it, so the two differ only
+in where the ray ends; ball samples short of the disk left out and, for those past it, texels nearer the
+sample than the disk not counted take r4 from 0.122 to 0.208 and r2 from 0.046 to 0.054 (a wall between
+the sample and the disk, nearest in its map, hides the casters behind it; a map keeps one depth per texel),
+and 0.252 / 0.128 without that cut.
 Fuzz seed 6020 is this class too (its 4.66 m soft point light alone: REFERENCE 0.18; its 1.4 rad sun with a
 non-uniform scale alone: 0.000, as Cycles takes only the direction of a sun's Z axis). Cycles references
 are cached."""

@@ -34,6 +34,31 @@ def test_faces_partition_the_points_and_each_face_holds_what_it_owns():
         assert not lightview.outside_view(face, sub).any(), "a face must hold every point it owns"
 
 
+def test_the_single_view_keeps_a_point_only_if_it_holds_where_its_shadow_ray_starts():
+    """A point the clamped view holds whose lifted start (the terminator lift) lies past its window goes to a
+    cube face, chosen by the point itself; a face fitted to its points and their lifted starts holds both."""
+    rng = np.random.default_rng(3)
+    light = _light()
+    pts = rng.uniform(-3, 3, (4000, 3))
+    pts[:, 2] = rng.uniform(0.0, 4.0, 4000)
+    receivers = (pts.min(axis=0), pts.max(axis=0))
+    view = lightview.fit(light, receivers, receivers, 256)
+    lifted = pts + rng.normal(0.0, 0.05, pts.shape)
+    plain = lightview.split_faces(view, pts)
+    faces = lightview.split_faces(view, pts, lifted)
+    kept = faces[0][1]
+    assert not lightview.outside_view(view, lifted[kept]).any()
+    moved = plain[0][1] & ~kept
+    assert moved.any(), "some lifted starts must leave the single view, or this test shows nothing"
+    owned = np.sum([mask for _, mask in faces], axis=0)
+    assert (owned == 1).all()
+    for rotation, mask in faces[1:]:
+        both = np.concatenate([pts[mask], lifted[mask]])
+        face = lightview.fit(light, (both.min(axis=0), both.max(axis=0)), receivers, 256, frame=view.view,
+                             face=rotation, receiver_points=both)
+        assert not lightview.outside_view(face, both).any()
+
+
 def test_a_view_that_holds_every_point_is_not_split():
     light = _light()
     pts = np.array([[0.2, 0.1, 0.0], [-0.5, 0.3, 0.0], [0.0, 0.0, 1.0]])

@@ -16,13 +16,23 @@ import math
 import numpy as np
 
 from .shading import SUN_MAX_HALF
-from .snapshot import AREA, DISK, ELLIPSE, SUN, Light
+from .snapshot import AREA, DISK, ELLIPSE, SPOT, SUN, Light
 
 
 def penumbra_spread(z, d, ortho: bool):
     """Window units of penumbra per unit of light half extent between an occluder at depth z and a
     receiver at depth d (scalars or numpy arrays; no clamping: negative when z lies behind d)."""
     return d - z if ortho else 1.0 / z - 1.0 / d
+
+
+def spot_cone_tans(light: Light) -> tuple[float, float]:
+    """tan of the spot cone's half angle along the light's local X and Y: the object scale stretches the cone
+    by scale x (y) over scale z, as spot.glsl's u_spot_to_local does. Unbounded (inf) for other lights."""
+    if light.kind != SPOT:
+        return math.inf, math.inf
+    s = np.maximum(np.abs(np.asarray(light.spot_scale, float)), 1e-12)
+    t = np.tan(min(light.spot_size / 2.0, np.pi / 2.0 - 1e-6))
+    return float(t * s[0] / s[2]), float(t * s[1] / s[2])
 
 
 def light_half_extent(light: Light, face=None) -> tuple[float, float]:

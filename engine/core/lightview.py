@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
-from .light_shape import penumbra_spread
+from .light_shape import penumbra_spread, spot_cone_tans
 from .shading import SUN_MAX_HALF
 from .matrices import mat_uniform
 
@@ -141,6 +141,15 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
         limit = np.tan(MAX_HALF_ANGLE)
         win_r, r_depth = _tangent_window(rec, near_floor)
         win_c, c_depth = _tangent_window(cas, near_floor)
+        nearest = float((-rec[:, 2]).min())
+        if light.kind == SPOT and face is None and nearest > max(light.radius, near_floor):
+            # A spot lights nothing past its cone (as its rays leave the emitter, kernel/light/spot.h): its
+            # receivers' window is the cone's, however far their box's corners reach. From the centre, a ray
+            # from a point of the emitter up to `radius` away reaches past that cone by radius/depth. Inside
+            # its sphere there is no cone: kept for receivers all in front of the light and past its radius.
+            tx, ty = spot_cone_tans(light)
+            spill = 0.0 if origin_local is not None else light.radius * (1.0 + max(tx, ty)) / nearest
+            win_r = _intersect(win_r, (-tx - spill, tx + spill, -ty - spill, ty + spill))
         z_c = max(c_depth.min(), near_floor)
         grow = half * max(penumbra_spread(z_c, max(r_depth.max(), z_c), False), 0.0)   # h · (1/z_occ − 1/z_rec)
     shadowable = _intersect(win_r, _widen(win_c, grow))
@@ -203,17 +212,22 @@ def outside_view(view: LightView, points: np.ndarray) -> np.ndarray:
     return behind | (w[:, 0] < x0) | (w[:, 0] > x1) | (w[:, 1] < y0) | (w[:, 1] > y1)
 
 
-def split_faces(view: LightView, points: np.ndarray) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
+def split_faces(view: LightView, points: np.ndarray,
+                lifted: np.ndarray | None = None) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
     """When a light's single view had to be clamped and some lit points (N, 3, world) fall outside it: the views
     that hold them all, as
     [(rotation from the light's frame, or None for the single view itself; mask of the points it owns)].
     The single view keeps every point it holds; the others go to the cube faces around the light by the
     dominant axis of their direction from it (each at most 45° off its face's axis), only faces that own a
     point. None when the view was not clamped (its window holds every receiver a caster can shadow, so a
-    point outside it is lit for certain), when it holds every point, and for orthographic views."""
+    point outside it is lit for certain), when it holds every point, and for orthographic views. `lifted`
+    (N, 3): where each point's shadow ray leaves it (the terminator lift); the single view keeps a point
+    only if it holds that too, the face that owns it is chosen by the point itself."""
     if view.is_ortho or not view.clamped or len(points) == 0:
         return None
     outside = outside_view(view, points)
+    if lifted is not None:
+        outside |= outside_view(view, lifted)
     if not outside.any():
         return None
     local = to_local(view.view, points)

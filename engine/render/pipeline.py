@@ -136,7 +136,8 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
                 if view.clamped:
-                    faces = lightview.split_faces(view, lit_xyz)
+                    lit_xyz = np.concatenate([lit_xyz, _lifted_points(frame, lit, lit_xyz)], axis=1)
+                    faces = lightview.split_faces(view, lit_xyz[:, :3], lit_xyz[:, 3:])
                 elif rim:
                     g = frame.gbuffer
                     faces = lightview.sun_rim_faces(light, view, frame.read(g["g_geometric"])[lit][:, :3],
@@ -210,6 +211,15 @@ def _keep_max(debug: dict, more: dict) -> None:
         debug[name] = array if name not in debug else np.maximum(debug[name], array)
 
 
+def _lifted_points(frame: Frame, lit: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    """The points (N, 3) that the lit pixels' shadow rays leave from at the whole terminator lift (common/
+    gbuffer.frag: g_geometric.w along the shading normal; light_view.glsl make_lit_receiver lifts by at most
+    that): where a ray aimed into its own smooth triangle starts, which a view must hold to test it."""
+    normal = frame.read(frame.gbuffer["g_normal"])[lit][:, :3]
+    lift = frame.read(frame.gbuffer["g_geometric"])[lit][:, 3:4]
+    return xyz + normal * lift
+
+
 def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, faces, lit, lit_xyz,
                      irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
     """A light whose lit pixels do not fit one view: its single view for the pixels it holds, and one view per
@@ -231,7 +241,9 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         if rotation is None:                    # the light's single view keeps the pixels it holds
             receivers, casters, face_view = view_receivers, view_casters, view
         else:
-            pts = lit_xyz[mask].astype(np.float64)
+            # the face holds its receivers and the points their shadow rays leave from (lifted off smooth
+            # triangles), so a lifted point is looked up in a map instead of falling off it
+            pts = lit_xyz[mask].astype(np.float64).reshape(-1, 3)
             receivers = (pts.min(axis=0), pts.max(axis=0))
             if light.casts_shadow and frame.geometry.has_casters:
                 casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers,

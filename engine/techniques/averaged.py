@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import lightview
+from ..core.light_shape import spot_cone_tans
 from ..core.shading import spot_uniforms
 from ..core.shader_constants import (SIDE_ALL, SIDE_INSIDE, SIDE_OUTSIDE, WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE,
                                      WEIGHT_SUN)
@@ -138,14 +139,6 @@ def _fills_ball(light: Light, view, split: bool) -> bool:
 CONE_SAMPLES_MAX = 16         # cone_sample_count: at most this many times the setting's samples
 
 
-def _cone_tans(light: Light) -> tuple[float, float]:
-    """tan of the spot cone's half angle along the light's local X and Y: the object scale stretches the cone
-    by scale x (y) over scale z, as spot.glsl's u_spot_to_local does."""
-    s = np.maximum(np.abs(np.asarray(light.spot_scale, float)), 1e-12)
-    t = np.tan(min(light.spot_size / 2.0, np.pi / 2.0 - 1e-6))
-    return float(t * s[0] / s[2]), float(t * s[1] / s[2])
-
-
 def cone_sample_count(light: Light, n: int, receivers, region_area: float | None = None) -> int:
     """Samples to draw over a spot light with a radius so that about `n` of them light each receiver. Cycles
     applies the cone per ray (kernel/light/spot.h), so a receiver at depth d below the light receives light
@@ -160,7 +153,7 @@ def cone_sample_count(light: Light, n: int, receivers, region_area: float | None
     lo, hi = (np.asarray(b, float) for b in receivers)
     c = np.asarray(light.position, float)
     d = float(np.linalg.norm(np.clip(c, lo, hi) - c))
-    tx, ty = _cone_tans(light)
+    tx, ty = spot_cone_tans(light)
     footprint = np.pi * d * d * tx * ty
     area = np.pi * light.radius ** 2 if region_area is None else region_area
     share = min(1.0, footprint / max(area, 1e-30))
@@ -180,7 +173,7 @@ def cone_region(light: Light, receivers) -> tuple | None:
     depth = -local[:, 2]
     if np.any(depth <= 0.0):
         return None
-    tx, ty = _cone_tans(light)
+    tx, ty = spot_cone_tans(light)
     r = float(light.radius)
     box = (max(float(np.min(local[:, 0] - depth * tx)), -r), min(float(np.max(local[:, 0] + depth * tx)), r),
            max(float(np.min(local[:, 1] - depth * ty)), -r), min(float(np.max(local[:, 1] + depth * ty)), r))
