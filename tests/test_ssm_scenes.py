@@ -61,6 +61,16 @@ SCENES = {
         lights=[_light("Light", "AREA", (0.2, 0.1, 5.0), (0.0, 0.0, 0.0), 1000.0, shape="SQUARE", size=0.5,
                        size_y=0.5)],
         camera=_camera((0.3, -2.6, 2.2), (0.0, 0.0, 0.8), lens=35.0)),
+    # A sun whose object sits below the box it shadows (fuzz 8010, 8015, 8107: huge casters, or a sun placed
+    # inside the scene): a sun's light frame sits at the object, so the box lies at negative depth, which
+    # the occluder maps read as empty texels. Before the SSM view moved its eye behind the casters: the
+    # box's shadow on the floor missing, mae_shadow 0.78; after: 0.009.
+    "sun_below_its_caster": dict(
+        seed=-3,
+        objects=[_object("Box", "CUBE", (0.0, 0.0, 1.6), (1.0, 1.0, 0.4))],
+        floor=dict(half_size=6.0, rotation=[0.0, 0.0, 0.0], z=0.0),
+        lights=[_light("Sun", "SUN", (0.25, 0.15, 0.5), (0.0, 0.0, 0.0), 3.0, angle=0.1)],
+        camera=_camera((0.5, -4.0, 3.5), (0.0, 0.0, 0.3), lens=24.0)),
 }
 
 
