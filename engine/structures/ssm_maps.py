@@ -55,7 +55,8 @@ def role_warnings(snap) -> list[str]:
 def ssm_view(view: LightView, half, size: int) -> LightView:
     """The pipeline's light view with texels of the light's aspect ratio (§3.2: micro-patches axis-aligned
     with the light and of its aspect ratio); the longer side in texels gets `size`. The window grows
-    symmetrically on the short side to a whole number of texels."""
+    symmetrically on the short side to a whole number of texels. A sun's eye moves back along its axis so
+    that every depth in the view is positive."""
     x0, x1, y0, y1 = view.window
     # 1e-30 window units: a degenerate (zero-width) window still divides; 1e-9 texels: a window that is a
     # whole number of texels up to rounding does not get one more.
@@ -75,8 +76,20 @@ def ssm_view(view: LightView, half, size: int) -> LightView:
         width = int(min(max(math.ceil(w / tw - 1e-9), 1), size))
         grow = (width * tw - w) / 2.0
         window = (x0 - grow, x1 + grow, y0, y1)
-    proj = (lightview.ortho if view.is_ortho else lightview.frustum)(window, view.near, view.far)
-    return LightView(view.view, proj, width, height, view.near, view.far, view.is_ortho,
+    world_to_local, near, far = view.view, view.near, view.far
+    if view.is_ortho:
+        # A sun's frame sits at the sun object, so casters behind it have depth ≤ 0, which SSM's maps read as
+        # empty (depth 0 is the far maps' "no receiver", and the spread and the depth gap are measured from
+        # the eye): move the eye back along the light's axis until the nearest depth is 1 % of the range. A
+        # sun's spread depends on depth differences only, so nothing else changes.
+        lead = 0.01 * max(far - near, 1e-9)
+        if near < lead:
+            shift = np.eye(4)
+            shift[2, 3] = near - lead           # local z' = z + near − lead: depth' = depth − near + lead
+            world_to_local = shift @ np.asarray(world_to_local, float)
+            near, far = lead, far - near + lead
+    proj = (lightview.ortho if view.is_ortho else lightview.frustum)(window, near, far)
+    return LightView(world_to_local, proj, width, height, near, far, view.is_ortho,
                      tuple(float(v) for v in window), view.clamped)
 
 

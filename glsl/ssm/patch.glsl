@@ -72,8 +72,15 @@ float ff_rect(vec4 r) {          // x0, y0, x1, y1
 }
 
 // Hidden share of the light's irradiance at a receiver at window position t, depth zr, for the overlap `ab`
-// (normalised light coordinates [0, 1]²). Perspective views only (a sun's directions are all equal).
+// (normalised light coordinates [0, 1]²). A sun's light coordinates are direction tangents about its axis,
+// the same for every receiver: a direction (x, y, 1) stands for the solid angle cos³θ dx dy and a receiver
+// facing the sun weighs it by cosθ more, the parallel-rectangle integrand at unit height over the axis
+// (foot t = 0, zr = 1). Uniform in tangents, a wide sun's edge counted as much as its centre.
 float weighted_fraction(vec4 ab, vec2 t, float zr) {
+    if (u_ortho == 1) {
+        t = vec2(0.0);
+        zr = 1.0;
+    }
     vec2 h = max(u_half, vec2(1e-9));      // metres (tan for a sun): a zero-size light still divides
     vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
     vec4 light = vec4(-h, h) / zr - t.xyxy;
@@ -92,7 +99,7 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
     vec4 ab = clamp(vec4(0.5) + d * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
 #if SSM_WEIGHTED
-    if (u_ortho == 0 && w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
+    if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
 #endif
     return w.x * w.y;
 }
@@ -112,7 +119,7 @@ float patch_occlusion(vec2 patch_texel, float zo, vec2 t_texel, float zr) {
     vec4 ab = clamp(vec4(0.5) + vec4(lo - t, hi - t) * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
 #if SSM_WEIGHTED
-    if (u_ortho == 0 && w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
+    if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
 #endif
     return w.x * w.y;
 }
