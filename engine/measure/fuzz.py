@@ -350,9 +350,11 @@ def cycles_side(scene, width: int, height: int, samples: int = CYCLES_SAMPLES) -
     return SceneReference(a, floor, unshadowed_error(b.unshadowed, a.unshadowed, mask), a.seconds + b.seconds)
 
 
-def shadow_score(params: dict, technique: str, resolution=RESOLUTION, samples: int = CYCLES_SAMPLES) -> tuple:
+def shadow_score(params: dict, technique: str, resolution=RESOLUTION, samples: int = CYCLES_SAMPLES,
+                 overrides: dict | None = None) -> tuple:
     """(metrics, bound) of one technique's Visibility on a hand-built scene in this generator's format: the
-    fuzz's shadow check alone (no Unshadowed check), for tests of one class of scene."""
+    fuzz's shadow check alone (no Unshadowed check), for tests of one class of scene; `overrides`: render
+    settings on top of the defaults."""
     import json
 
     import bpy
@@ -364,7 +366,8 @@ def shadow_score(params: dict, technique: str, resolution=RESOLUTION, samples: i
     scene = build(json.loads(json.dumps(params)), resolution)      # build may not touch the caller's dict
     cyc = cycles_side(scene, int(resolution[0]), int(resolution[1]), samples)
     snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
-    result = pipeline.render(snap, RenderSettings(antialiasing=False).with_(technique=technique))
+    settings = RenderSettings(antialiasing=False).with_(**{**(overrides or {}), "technique": technique})
+    result = pipeline.render(snap, settings)
     m = compare(result.passes["Visibility"][..., 0], cyc.ref.visibility, cyc.ref.mask)
     return m, bound(technique, cyc.floor["mae_shadow"], m["n_shadow"])
 
