@@ -357,12 +357,12 @@ NEW_SETTINGS = [{"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend"
                                  "0.033 with the border budget 12 -> 5, uniform b = 5 0.37, b = 8 0.087; b = 16, "
                                  "the default, passes, as does b = 5 without the over-precision fix"))),
                 {"bp_budget_map": "UNBOUNDED", "bp_primitive": "MICRORECT"},
-                {"bp_coarse_fit": "MEAN"}, {"bp_coarse_fit": "EXTENT", "bp_primitive": "MICROPATCH"}]
+                {"bp_coarse_fit": "NONE"}, {"bp_coarse_fit": "EXTENT", "bp_primitive": "MICROPATCH"}]
 
 
 @pytest.mark.slow                   # ~1 min per setting on llvmpipe, 2–5 min with b = ∞
 @pytest.mark.parametrize("overrides", NEW_SETTINGS, ids=["2008-all", "border-blend", "unbounded-microrects",
-                                                         "coarse-fit-mean", "coarse-fit-extent-patches"])
+                                                         "coarse-fit-none", "coarse-fit-extent-patches"])
 def test_stress_cases_pass_with_the_new_settings(overrides):
     cases = ["touch_plane", "near_light", "big_light", "tiny_light", "grazing", "scaled_small", "thin_bars",
              "zero_area"]

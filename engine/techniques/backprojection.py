@@ -12,7 +12,7 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
   samples (§3: 8×8, 16×16, 16×16 jittered = 8×8 tiling of the 2×2 RGSS pattern, 32×32); V = unset / all;
 * at most b×b micro-occluders per layer: a coarser hierarchy level, sampled on its own grid, when the area is
   larger (§5);
-* optionally (bp_coarse_fit, ours) a coarse micropatch/microrect refitted per receiver to its finer-level
+* by default (bp_coarse_fit, ours; NONE is the papers') a coarse micropatch/microrect refitted per receiver to its finer-level
   parts that occlude it: their bounding box, at their minimum or mean depth, instead of the whole cell at the
   minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces the light grazes);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
@@ -210,7 +210,7 @@ class Backprojection(Technique):
                "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
         Option("bp_query_growth", True, "Over-precision fix", "Grow the queried area to the support of the "
                "micro-occluders of the level it will use before classifying (2008, §6)"),
-        Option("bp_coarse_fit", "NONE", "Coarse refit", "Coarse micro-occluders (micropatches, microrects) "
+        Option("bp_coarse_fit", "MEAN", "Coarse refit", "Coarse micro-occluders (micropatches, microrects) "
                "fitted per receiver to their finer-level cells that occlude it (not in the papers)",
                items=(("NONE", "None (papers)", "The cell or microrect at the minimum depth of all its texels"),
                       ("EXTENT", "Extent", "Shrunk to the occluding finer cells, at their minimum depth"),
@@ -247,8 +247,9 @@ class Backprojection(Technique):
            {"bp_blend": True}, {"bp_query_growth": True}, {"bp_primitive": "MICRORECT"},
            {"bp_refinement": "YSM"},
            {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}]
-        # Ours: coarse micro-occluders refitted to their occluding finer parts.
-        + [{"bp_coarse_fit": "MEAN"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"}])
+        # Ours: coarse micro-occluders refitted to their occluding finer parts (MEAN, the default), and the
+        # papers' whole cell at its minimum depth.
+        + [{"bp_coarse_fit": "NONE"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"}])
 
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
