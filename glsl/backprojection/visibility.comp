@@ -402,7 +402,7 @@ const int REFIT_PARTS = 4;
 
 bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, inout vec2 p1) {
     int f = l - 1;
-    vec2 lo = vec2(1e30), hi = vec2(-1e30);
+    vec2 lo = vec2(NO_OCCLUDER), hi = vec2(-NO_OCCLUDER);
     float zmin = NO_OCCLUDER, zsum = 0.0, n = 0.0;
     for (int k = 0; k < REFIT_PARTS; ++k) {
 #if PRIMITIVE == PRIMITIVE_MICRORECT
