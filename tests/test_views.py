@@ -14,13 +14,18 @@ def _light(position=(0.0, 0.0, 2.0), size=0.6):
     return stress.area_light(position, size=size)
 
 
-def test_faces_partition_the_points_and_each_face_holds_what_it_owns():
-    rng = np.random.default_rng(3)
+def _scattered_receivers(rng):
+    """A light whose single view must clamp (4000 receivers all around it, above and below its plane), the
+    receivers, their box and that view."""
     light = _light()
     pts = rng.uniform(-3, 3, (4000, 3))
-    pts[:, 2] = rng.uniform(0.0, 4.0, 4000)           # all around the light, above and below its plane
+    pts[:, 2] = rng.uniform(0.0, 4.0, 4000)
     receivers = (pts.min(axis=0), pts.max(axis=0))
-    view = lightview.fit(light, receivers, receivers, 256)
+    return light, pts, receivers, lightview.fit(light, receivers, receivers, 256)
+
+
+def test_faces_partition_the_points_and_each_face_holds_what_it_owns():
+    light, pts, receivers, view = _scattered_receivers(np.random.default_rng(3))
     faces = lightview.split_faces(view, pts)
     assert faces is not None and faces[0][0] is None   # the single view keeps what it holds
     owned = np.sum([mask for _, mask in faces], axis=0)
@@ -38,11 +43,7 @@ def test_the_single_view_keeps_a_point_only_if_it_holds_where_its_shadow_ray_sta
     """A point the clamped view holds whose lifted start (the terminator lift) lies past its window goes to a
     cube face, chosen by the point itself; a face fitted to its points and their lifted starts holds both."""
     rng = np.random.default_rng(3)
-    light = _light()
-    pts = rng.uniform(-3, 3, (4000, 3))
-    pts[:, 2] = rng.uniform(0.0, 4.0, 4000)
-    receivers = (pts.min(axis=0), pts.max(axis=0))
-    view = lightview.fit(light, receivers, receivers, 256)
+    light, pts, receivers, view = _scattered_receivers(rng)
     lifted = pts + rng.normal(0.0, 0.05, pts.shape)
     plain = lightview.split_faces(view, pts)
     faces = lightview.split_faces(view, pts, lifted)
@@ -70,12 +71,7 @@ def test_a_face_fits_the_points_it_owns_not_their_box():
     """A face's points lie within 45° of its axis, but the far corners of their box can lie far outside that
     pyramid (or behind the eye), which widened the face's window up to the tangent limit and coarsened its
     texels. Fitted to the points themselves, every face's window stays within the pyramid (plus the margin)."""
-    rng = np.random.default_rng(5)
-    light = _light()
-    pts = rng.uniform(-3, 3, (4000, 3))
-    pts[:, 2] = rng.uniform(0.0, 4.0, 4000)
-    receivers = (pts.min(axis=0), pts.max(axis=0))
-    view = lightview.fit(light, receivers, receivers, 256)
+    light, pts, receivers, view = _scattered_receivers(np.random.default_rng(5))
     faces = lightview.split_faces(view, pts)
     wide = 0
     for rotation, mask in faces[1:]:
