@@ -243,7 +243,7 @@ SUN_RIM_VIEWS = 8
 
 def sun_rim_faces(light: Light, view: LightView, geometric: np.ndarray, shading: np.ndarray
                   ) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
-    """For the techniques that cast one light point's hard shadow (HARD, PCF, SPSM), the views of a sun whose
+    """For the techniques that work from one light point's map (Technique.sun_rim_views), the views of a sun whose
     lit receivers include some with its centre below their horizon (geometric and shading normals, N × 3 world,
     both at or below it): the centre's map then holds nothing on their rays to the part of the disk they see,
     and its tangent-plane rule leaves them lit, even inside a closed room. Such a receiver takes instead the

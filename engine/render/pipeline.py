@@ -90,6 +90,13 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
 
     with t.stage("readback"):
         position = frame.read(frame.gbuffer["g_position"])
+    normals = {}        # g_normal, g_geometric: read back once per frame, when a light first needs them
+
+    def gbuffer_array(name: str) -> np.ndarray:
+        if name not in normals:
+            with t.stage("readback"):
+                normals[name] = frame.read(frame.gbuffer[name])
+        return normals[name]
     covered = position[..., 3] > 0.0
     bounds_buffer = frame.buffer(_BOUNDS_RESET)
     caster_objects = np.array([o.caster for o in snap.objects], bool)
@@ -136,12 +143,13 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
                 if view.clamped:
-                    lit_xyz = np.concatenate([lit_xyz, _lifted_points(frame, lit, lit_xyz)], axis=1)
+                    lifted = _lifted_points(gbuffer_array("g_normal")[lit], gbuffer_array("g_geometric")[lit],
+                                            lit_xyz)
+                    lit_xyz = np.concatenate([lit_xyz, lifted], axis=1)
                     faces = lightview.split_faces(view, lit_xyz[:, :3], lit_xyz[:, 3:])
                 elif rim:
-                    g = frame.gbuffer
-                    faces = lightview.sun_rim_faces(light, view, frame.read(g["g_geometric"])[lit][:, :3],
-                                                    frame.read(g["g_normal"])[lit][:, :3])
+                    faces = lightview.sun_rim_faces(light, view, gbuffer_array("g_geometric")[lit][:, :3],
+                                                    gbuffer_array("g_normal")[lit][:, :3])
             if faces is None:
                 rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
                                        stats, debug)
@@ -211,13 +219,12 @@ def _keep_max(debug: dict, more: dict) -> None:
         debug[name] = array if name not in debug else np.maximum(debug[name], array)
 
 
-def _lifted_points(frame: Frame, lit: np.ndarray, xyz: np.ndarray) -> np.ndarray:
-    """The points (N, 3) that the lit pixels' shadow rays leave from at the whole terminator lift (common/
-    gbuffer.frag: g_geometric.w along the shading normal; light_view.glsl make_lit_receiver lifts by at most
-    that): where a ray aimed into its own smooth triangle starts, which a view must hold to test it."""
-    normal = frame.read(frame.gbuffer["g_normal"])[lit][:, :3]
-    lift = frame.read(frame.gbuffer["g_geometric"])[lit][:, 3:4]
-    return xyz + normal * lift
+def _lifted_points(normal: np.ndarray, geometric: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    """The points (N, 3) that the lit pixels' shadow rays leave from at the whole terminator lift (their
+    g_normal and g_geometric texels, N × 4; common/gbuffer.frag: g_geometric.w along the shading normal;
+    light_view.glsl make_lit_receiver lifts by at most that): where a ray aimed into its own smooth triangle
+    starts, which a view must hold to test it."""
+    return xyz + normal[:, :3] * geometric[:, 3:4]
 
 
 def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, faces, lit, lit_xyz,

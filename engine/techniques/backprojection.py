@@ -12,9 +12,10 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
   samples (§3: 8×8, 16×16, 16×16 jittered = 8×8 tiling of the 2×2 RGSS pattern, 32×32); V = unset / all;
 * at most b×b micro-occluders per layer: a coarser hierarchy level, sampled on its own grid, when the area is
   larger (§5);
-* by default (bp_coarse_fit, ours; NONE is the papers') a coarse micropatch/microrect refitted per receiver to its finer-level
-  parts that occlude it: their bounding box, at their minimum or mean depth, instead of the whole cell at the
-  minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces the light grazes);
+* by default (bp_coarse_fit, ours; NONE is the papers') a coarse micropatch/microrect refitted per receiver
+  to its finer-level parts that occlude it: their bounding box, at their minimum or mean depth, instead of the
+  whole cell at the minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces
+  the light grazes);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
 * round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
@@ -36,7 +37,8 @@ from ..core.light_shape import weighted_sun_half
 from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM,
                                      CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
-                                     REFINE_MSSM, REFINE_NONE, REFINE_YSM)
+                                     REFINE_MSSM, REFINE_NONE, REFINE_YSM, REFIT_DEPTH, REFIT_EXTENT, REFIT_MEAN,
+                                     REFIT_NONE)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from ..gpu import loops
 from ..structures import need
@@ -76,6 +78,7 @@ PRIMITIVE = {"MICROPATCH": PRIMITIVE_MICROPATCH, "MICROQUAD": PRIMITIVE_MICROQUA
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
 REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
+REFIT = {"NONE": REFIT_NONE, "EXTENT": REFIT_EXTENT, "MEAN": REFIT_MEAN, "DEPTH": REFIT_DEPTH}
 LOQ_DEPTH_JUMP = 0.05           # relative camera-depth jump at which the LOQ smoothing stops (a discontinuity)
 
 # Mesa's llvmpipe ends a shader's loops once they have run 65535 iterations in all (engine/gpu/loops.py,
@@ -336,8 +339,7 @@ class Backprojection(Technique):
                    "WEIGHTED": int(weighted),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
                    "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER,
-                   "REFIT": {"NONE": 0, "EXTENT": 1, "MEAN": 2, "DEPTH": 3}[o["bp_coarse_fit"]] * int(
-                       primitive != PRIMITIVE_MICROQUAD)}
+                   "REFIT": REFIT_NONE if primitive == PRIMITIVE_MICROQUAD else REFIT[o["bp_coarse_fit"]]}
         frame.progress.check()
         if blend:
             with frame.timings.stage("bp_loq"):

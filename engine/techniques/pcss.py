@@ -7,9 +7,9 @@ from .base import DEPTH_MAP, MAP_SIZE_SWEEP, Option, Technique, light_shape_unif
 
 class Pcss(Technique):
     identifier = "PCSS"
-    sun_rim_views = True
     label = "PCSS"
     description = "Blocker search and variable-size PCF (Fernando 2005): plausible, not exact, soft shadows"
+    sun_rim_views = True
     options = (
         Option("pcss_blocker_samples", 32, "Blocker Samples", "Depth-map samples of the blocker search",
                min=1, max=1024),

@@ -56,7 +56,7 @@
 #define GROW 0
 #endif
 #ifndef REFIT
-#define REFIT 0                 // 1/2/3: refit coarse micro-occluders to their occluding finer cells (see refit)
+#define REFIT REFIT_NONE       // REFIT_EXTENT/MEAN/DEPTH: coarse micro-occluders refitted (see refit)
 #endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
@@ -382,14 +382,14 @@ bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
     return z < m;
 }
 
-#if REFIT
+#if REFIT != REFIT_NONE
 // Coarse refit (our addition to the 2007/2008 coarse levels): a level-l micro-occluder over [p0, p1) at the
 // minimum depth z of all its texels also turns the texels that do not occlude this receiver (the ground
 // beside a silhouette, the receiver's own surface) into occluders at z, and lifts the deeper ones towards
 // the light: too large, too central a backprojection (over-darkening). Per receiver, its level-(l − 1)
 // parts that occlude at their own depth are kept: the extent shrinks to their bounding box (within
-// [p0, p1)), the depth becomes their minimum (REFIT 1: still no deeper than any occluding texel) or their
-// mean (REFIT 2: the deeper texels no longer lifted to the nearest); REFIT 3 keeps the extent and takes
+// [p0, p1)), the depth becomes their minimum (REFIT_EXTENT: still no deeper than any occluding texel) or their
+// mean (REFIT_MEAN: the deeper texels no longer lifted to the nearest); REFIT_DEPTH keeps the extent and takes
 // only the mean depth. The parts: a micropatch's 2×2 cells of level l − 1; a microrect's level-(l − 1)
 // microrects among 2c + {−1, 0, 1}² whose reference point (level-0 texel j·2^(l−1)) lies in its extent,
 // which holds every microrect merged into it (each holds its own reference point, and the merge unites
@@ -426,11 +426,11 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
         n += 1.0;
     }
     if (n == 0.0) return false;
-    if (REFIT != 3) {
+    if (REFIT != REFIT_DEPTH) {
         p0 = lo;
         p1 = hi;
     }
-    z = REFIT == 1 ? max(zmin, z) : max(zsum / n, z);
+    z = REFIT == REFIT_EXTENT ? max(zmin, z) : max(zsum / n, z);
     return true;
 }
 #endif
@@ -454,7 +454,7 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
-#if REFIT
+#if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
 #endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
@@ -484,7 +484,7 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
-#if REFIT
+#if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
 #endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
