@@ -154,7 +154,8 @@ def test_a_stop_request_cancels_the_frame():
 @pytest.mark.parametrize("facing", ["down", "sideways", "away"])
 def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
     """The per-light lit test and receiver box come from a GPU reduction (render/lit_bounds.comp); they must
-    equal what the whole irradiance image read back gives: the exact float32 min and max of the lit pixels."""
+    equal what the whole irradiance image read back gives: the exact float32 min and max of the lit pixels,
+    and the count of lit pixels with a direction at or below their horizon (what gates a sun's rim views)."""
     from penumbra.engine.core.shading import light_defines, light_uniforms
     from penumbra.engine.gpu.context import GpuWorker
     from penumbra.engine.gpu.frame import Frame
@@ -172,16 +173,25 @@ def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
             light = snap.lights[0]
             frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
                            defines=light_defines(light))
-            gpu = pipeline._lit_bounds(frame, irradiance, frame.buffer(bytes(pipeline._BOUNDS_BYTES)))
+            buffer = frame.buffer(bytes(pipeline._BOUNDS_BYTES))
+            gpu, none_counted = pipeline._lit_bounds(frame, irradiance, buffer)
+            hidden = [pipeline._lit_bounds(frame, irradiance, buffer, towards=d)[1] for d in towards]
             lit = (frame.read(irradiance)[..., 3] > 0) & (frame.read(frame.gbuffer["g_position"])[..., 3] > 0)
             xyz = frame.read(frame.gbuffer["g_position"])[..., :3][lit]
-            return gpu, lit, xyz
+            normals = [frame.read(frame.gbuffer[name])[..., :3][lit] for name in ("g_geometric", "g_normal")]
+            return gpu, none_counted, hidden, lit, xyz, normals
         finally:
             frame.release()
-    gpu, lit, xyz = GpuWorker.get().submit(job).result()
+    # every visible face is horizontal, facing up: straight up is above every horizon, straight down and
+    # along the ground are at or below them
+    towards = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    gpu, none_counted, hidden, lit, xyz, (geometric, shading) = GpuWorker.get().submit(job).result()
+    assert none_counted == 0
     if facing == "away":
-        assert not lit.any() and gpu is None
+        assert not lit.any() and gpu is None and hidden == [0, 0, 0]
         return
+    expected = [int(((geometric @ d <= 1e-5) & (shading @ d <= 1e-5)).sum()) for d in towards]
+    assert hidden == expected and expected[0] == 0 and expected[1] == expected[2] == lit.sum()
     assert 0 < lit.sum() < lit.size if facing == "sideways" else lit.sum() > 0
     np.testing.assert_array_equal(gpu[0], xyz.min(axis=0).astype(np.float64))
     np.testing.assert_array_equal(gpu[1], xyz.max(axis=0).astype(np.float64))

@@ -164,3 +164,19 @@ def test_sun_rim_views_take_the_receivers_whose_horizon_hides_the_centre():
         assert seen.sum() > 100 and (normals[seen] @ to_rim > 0.0).all()
     facing = normals * [1, 1, 0] + [0, 0, 0.5]      # every normal above the horizon: nothing to add
     assert lightview.sun_rim_faces(light, view, facing, facing) is None
+
+
+def test_the_rim_views_gate_uses_the_suns_frame_axis():
+    """The pipeline builds rim views only where render/lit_bounds.comp counts lit pixels with the direction
+    towards the sun (-Light.direction) below their horizon; sun_rim_faces tests against its view's +z. The two
+    must be the same axis for any sun orientation, or the gate would skip pixels sun_rim_faces would take."""
+    from penumbra.engine.core.snapshot import SUN, Light
+    rng = np.random.default_rng(11)
+    for _ in range(8):
+        q, _r = np.linalg.qr(rng.normal(size=(3, 3)))
+        m = np.eye(4)
+        m[:3, :3] = q * np.sign(np.linalg.det(q))
+        light = Light("Sun", SUN, m, np.ones(3), 1.0, angle=1.0)
+        pts = rng.uniform(-2, 2, (50, 3))
+        view = lightview.fit(light, (pts.min(axis=0), pts.max(axis=0)), None, 64)
+        np.testing.assert_allclose(np.asarray(view.view)[2, :3], -light.direction, atol=1e-9)

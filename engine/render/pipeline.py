@@ -120,8 +120,11 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         with t.stage("irradiance"):
             frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
                            defines=light_defines(light))
+        # Only a wide sun's rim can light what its centre does not reach (lightview.sun_rim_faces)
+        rim_sun = technique.sun_rim_views and light.kind == SUN and light.angle > 0.0
         with t.stage("readback"):
-            receivers = _lit_bounds(frame, irradiance, bounds_buffer)
+            receivers, hidden = _lit_bounds(frame, irradiance, bounds_buffer,
+                                            towards=-light.direction if rim_sun else None)
         if receivers is None:
             stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
             continue
@@ -135,18 +138,17 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         else:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
-                faces = lit_xyz = None
-                # Only a clamped view can leave lit pixels outside, and only a wide light's rim can light what
-                # its centre does not reach: read the lit pixels back then.
-                rim = technique.sun_rim_views and light.kind == SUN and light.angle > 0.0
+                faces = lit_xyz = lifted = None
+                # Only a clamped view can leave lit pixels outside, and only pixels with the sun's centre
+                # below their horizon need rim views: read the lit pixels back then.
+                rim = rim_sun and hidden > 0
                 if view.clamped or rim:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
                 if view.clamped:
                     lifted = _lifted_points(gbuffer_array("g_normal")[lit], gbuffer_array("g_geometric")[lit],
                                             lit_xyz)
-                    lit_xyz = np.concatenate([lit_xyz, lifted], axis=1)
-                    faces = lightview.split_faces(view, lit_xyz[:, :3], lit_xyz[:, 3:])
+                    faces = lightview.split_faces(view, lit_xyz, lifted)
                 elif rim:
                     faces = lightview.sun_rim_faces(light, view, gbuffer_array("g_geometric")[lit][:, :3],
                                                     gbuffer_array("g_normal")[lit][:, :3])
@@ -155,7 +157,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                                        stats, debug)
             else:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, lit_xyz,
-                                       irradiance, object_bounds, caster_objects, visibility, stats, debug)
+                                       lifted, irradiance, object_bounds, caster_objects, visibility, stats, debug)
         with t.stage("accumulate"):
             samplers = {"g_irradiance": irradiance, "u_visibility": visibility,
                         "u_visibility_rgb": rgb if rgb is not None else visibility}
@@ -174,22 +176,27 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     return FrameResult(out, dict(t), frame.warnings, stats)
 
 
-_BOUNDS_BYTES = 28                     # render/lit_bounds.comp: a count, then encoded min and max xyz
-_BOUNDS_RESET = np.array([0] + [0xFFFFFFFF] * 3 + [0] * 3, np.uint32).tobytes()
+_BOUNDS_BYTES = 32     # render/lit_bounds.comp: a count, encoded min and max xyz, the hidden count
+_BOUNDS_RESET = np.array([0] + [0xFFFFFFFF] * 3 + [0] * 3 + [0], np.uint32).tobytes()
 
 
-def _lit_bounds(frame: Frame, irradiance, buffer):
-    """World box (lo, hi) of the covered pixels this light reaches, or None if it reaches none: reduced on
-    the GPU (render/lit_bounds.comp), so only 28 bytes are read back. Exactly the float32 min and max."""
+def _lit_bounds(frame: Frame, irradiance, buffer, towards=None):
+    """World box (lo, hi) of the covered pixels this light reaches, or None if it reaches none, and how many
+    of them have the direction `towards` (world, unit) at or below their horizon (0 when it is None): reduced
+    on the GPU (render/lit_bounds.comp), so only 32 bytes are read back. Exactly the float32 min and max."""
     buffer.write(_BOUNDS_RESET)
-    frame.dispatch("render/lit_bounds.comp", samplers={"g_irradiance": irradiance}, buffers={0: buffer})
+    count_hidden = towards is not None
+    frame.dispatch("render/lit_bounds.comp",
+                   {"u_count_hidden": int(count_hidden),
+                    "u_towards_light": tuple(towards) if count_hidden else (0.0, 0.0, 1.0)},
+                   samplers={"g_irradiance": irradiance}, buffers={0: buffer})
     raw = np.frombuffer(buffer.read(), np.uint32)
     if raw[0] == 0:
-        return None
+        return None, 0
     enc = raw[1:7]          # invert lit_bounds.comp's ordered(): positives had the sign bit set
     bits = np.where(enc & np.uint32(0x80000000), enc ^ np.uint32(0x80000000), ~enc).astype(np.uint32)
     xyz = bits.view(np.float32).astype(np.float64)
-    return xyz[:3], xyz[3:]
+    return (xyz[:3], xyz[3:]), int(raw[7])
 
 
 def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
@@ -228,7 +235,7 @@ def _lifted_points(normal: np.ndarray, geometric: np.ndarray, xyz: np.ndarray) -
 
 
 def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, faces, lit, lit_xyz,
-                     irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
+                     lifted, irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
     """A light whose lit pixels do not fit one view: its single view for the pixels it holds, and one view per
     cube face for the rest (see lightview.split_faces), each fitted to the receivers it owns, with its own
     structures; every pixel takes the visibility of the view that owns it, so none is left outside every map.
@@ -250,7 +257,8 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         else:
             # the face holds its receivers and the points their shadow rays leave from (lifted off smooth
             # triangles), so a lifted point is looked up in a map instead of falling off it
-            pts = lit_xyz[mask].astype(np.float64).reshape(-1, 3)
+            pts = lit_xyz[mask] if lifted is None else np.concatenate([lit_xyz[mask], lifted[mask]])
+            pts = pts.astype(np.float64)
             receivers = (pts.min(axis=0), pts.max(axis=0))
             if light.casts_shadow and frame.geometry.has_casters:
                 casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers,

@@ -1,6 +1,9 @@
 // Which covered pixels this light reaches, reduced on the GPU to what the pipeline needs on the CPU: their
 // count and the world-space box around them (engine/render/pipeline.py _lit_bounds). A few bytes come back
-// instead of the whole irradiance image.
+// instead of the whole irradiance image. With u_count_hidden it also counts the lit pixels that see the light's
+// axis point (u_towards_light) at or below their horizon, by both normals: a sun's rim views are built only when
+// there are such pixels (engine/core/lightview.py sun_rim_faces, which makes the exact test on the CPU), so
+// the normals are read back only then. The count errs on the side of more (a looser threshold).
 // Floats are compared as order-preserving unsigned integers (sign bit flipped for positives, all bits for
 // negatives), so atomicMin/atomicMax on uints give the exact float32 minimum and maximum.
 #include "common/pixel.glsl"
@@ -9,11 +12,16 @@ layout(std430, binding = 0) buffer LitBounds {
     uint count;
     uint lo[3];     // encoded minimum x, y, z
     uint hi[3];     // encoded maximum x, y, z
+    uint hidden;    // lit pixels with the light's axis point below their horizon (u_count_hidden only)
 } result;
+
+uniform int u_count_hidden;
+uniform vec3 u_towards_light;       // world unit vector towards the light's axis point (a sun's centre)
 
 shared uint s_count;
 shared uint s_lo[3];
 shared uint s_hi[3];
+shared uint s_hidden;
 
 uint ordered(float f) {
     uint u = floatBitsToUint(f);
@@ -24,6 +32,7 @@ void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (gl_LocalInvocationIndex == 0u) {
         s_count = 0u;
+        s_hidden = 0u;
         for (int i = 0; i < 3; ++i) { s_lo[i] = 0xFFFFFFFFu; s_hi[i] = 0u; }
     }
     barrier();
@@ -35,10 +44,14 @@ void main() {
             atomicMin(s_lo[i], u);
             atomicMax(s_hi[i], u);
         }
+        if (u_count_hidden != 0 && dot(texelFetch(g_geometric, px, 0).xyz, u_towards_light) <= 1e-5
+                && dot(texelFetch(g_normal, px, 0).xyz, u_towards_light) <= 1e-5)
+            atomicAdd(s_hidden, 1u);
     }
     barrier();
     if (gl_LocalInvocationIndex == 0u && s_count > 0u) {    // one global update per work group
         atomicAdd(result.count, s_count);
+        atomicAdd(result.hidden, s_hidden);
         for (int i = 0; i < 3; ++i) {
             atomicMin(result.lo[i], s_lo[i]);
             atomicMax(result.hi[i], s_hi[i]);
