@@ -175,7 +175,7 @@ def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
                            defines=light_defines(light))
             buffer = frame.buffer(bytes(pipeline._BOUNDS_BYTES))
             gpu, none_counted = pipeline._lit_bounds(frame, irradiance, buffer)
-            hidden = [pipeline._lit_bounds(frame, irradiance, buffer, towards=d)[1] for d in towards]
+            hidden = [pipeline._lit_bounds(frame, irradiance, buffer, centre=c)[1] for c in centres]
             lit = (frame.read(irradiance)[..., 3] > 0) & (frame.read(frame.gbuffer["g_position"])[..., 3] > 0)
             xyz = frame.read(frame.gbuffer["g_position"])[..., :3][lit]
             normals = [frame.read(frame.gbuffer[name])[..., :3][lit] for name in ("g_geometric", "g_normal")]
@@ -183,15 +183,22 @@ def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
         finally:
             frame.release()
     # every visible face is horizontal, facing up: straight up is above every horizon, straight down and
-    # along the ground are at or below them
-    towards = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]])
+    # along the ground are at or below them (directions, w = 0), and so is a point below the ground, while
+    # a point between the ground and the plate is above the ground's horizon only (points, w = 1)
+    centres = np.array([[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, -1.0, 0.0], [1.0, 0.0, 0.0, 0.0],
+                        [0.0, 0.0, -2.0, 1.0], [0.0, 0.0, 0.5, 1.0]])
     gpu, none_counted, hidden, lit, xyz, (geometric, shading) = GpuWorker.get().submit(job).result()
     assert none_counted == 0
     if facing == "away":
-        assert not lit.any() and gpu is None and hidden == [0, 0, 0]
+        assert not lit.any() and gpu is None and hidden == [0] * len(centres)
         return
-    expected = [int(((geometric @ d <= 1e-5) & (shading @ d <= 1e-5)).sum()) for d in towards]
-    assert hidden == expected and expected[0] == 0 and expected[1] == expected[2] == lit.sum()
+    expected = []
+    for c in centres:
+        d = c[:3] - xyz if c[3] else np.broadcast_to(c[:3], xyz.shape)
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        expected.append(int(((np.sum(geometric * d, 1) <= 1e-5) & (np.sum(shading * d, 1) <= 1e-5)).sum()))
+    assert hidden == expected and expected[0] == 0 and expected[1] == expected[2] == expected[3] == lit.sum()
+    assert 0 < expected[4] < lit.sum() or facing == "sideways"
     assert 0 < lit.sum() < lit.size if facing == "sideways" else lit.sum() > 0
     np.testing.assert_array_equal(gpu[0], xyz.min(axis=0).astype(np.float64))
     np.testing.assert_array_equal(gpu[1], xyz.max(axis=0).astype(np.float64))

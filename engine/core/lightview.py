@@ -7,11 +7,11 @@ outside can change a visible pixel, so nothing outside is rendered. No bpy, no G
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
+from .snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Light
 from .light_shape import penumbra_spread, spot_cone_tans
 from .shading import SUN_MAX_HALF
 from .matrices import mat_uniform
@@ -243,7 +243,7 @@ SUN_RIM_VIEWS = 8
 
 def sun_rim_faces(light: Light, view: LightView, geometric: np.ndarray, shading: np.ndarray
                   ) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
-    """For the techniques that work from one light point's map (Technique.sun_rim_views), the views of a sun whose
+    """For the techniques that work from one light point's map (Technique.rim_views), the views of a sun whose
     lit receivers include some with its centre below their horizon (geometric and shading normals, N × 3 world,
     both at or below it): the centre's map then holds nothing on their rays to the part of the disk they see,
     and its tangent-plane rule leaves them lit, even inside a closed room. Such a receiver takes instead the
@@ -268,6 +268,198 @@ def sun_rim_faces(light: Light, view: LightView, geometric: np.ndarray, shading:
             to_rim = np.array([np.sin(half) * np.cos(i * step), np.sin(half) * np.sin(i * step), np.cos(half)])
             faces.append((face_rotation(-to_rim), mask))
     return faces
+
+
+# How finely the part of an emitter a receiver sees is sampled, and how finely the stand-in points of
+# local_rim_lights are grouped (cells per side of the emitter's extent).
+RIM_SAMPLES_PER_SIDE = 8
+RIM_CELLS_PER_SIDE = 2
+# Rounds of finer grouping for the receivers a group's stand-in leaves below their horizon, and the most
+# stand-ins (each a light view) a finer round may bring the total to; past that, the receivers still left
+# are grouped by the coarsest cells again, at most RIM_CELLS_PER_SIDE² more for an area light.
+RIM_ROUNDS = 2
+RIM_MAX_VIEWS = 8
+
+
+def _unit_square_grid(round_shape: bool) -> np.ndarray:
+    """Cell centres (M, 2) of a RIM_SAMPLES_PER_SIDE² grid over [-1, 1]², those inside the unit disk when
+    `round_shape`."""
+    c = (np.arange(RIM_SAMPLES_PER_SIDE) + 0.5) / RIM_SAMPLES_PER_SIDE * 2.0 - 1.0
+    grid = np.stack(np.meshgrid(c, c), axis=-1).reshape(-1, 2)
+    return grid[(grid ** 2).sum(axis=1) <= 1.0] if round_shape else grid
+
+
+def seen_emitter(light: Light, points: np.ndarray, geometric: np.ndarray, chunk: int = 8192):
+    """What each receiver (N × 3 world, geometric normals N × 3) sees of a local light's emitter, from a fixed
+    grid of its points: over an area light's rectangle or ellipse, or over the disk of a sphere light that
+    faces the receiver (as Cycles samples one). Per receiver: the centroid (N × 3 world) of the grid points
+    above its tangent plane, their box (lo, hi: N × 2, grown by half a grid cell) in the emitter's axes (the
+    area light's X and Y; for a sphere light, _perpendicular_axes of the direction from the light), and
+    whether it sees any (N). In chunks of receivers, so a whole frame's take bounded memory."""
+    pts, ng = np.asarray(points, float), np.asarray(geometric, float)
+    m = np.asarray(light.matrix, float)
+    if light.kind == AREA:
+        half = np.array([light.size_x, light.size_y]) / 2.0
+        grid = _unit_square_grid(light.shape in (DISK, ELLIPSE)) * half
+    else:
+        half = np.full(2, light.radius)
+        grid = _unit_square_grid(True) * half
+    pad = half / RIM_SAMPLES_PER_SIDE
+    out = np.zeros((len(pts), 3)), np.zeros((len(pts), 2)), np.zeros((len(pts), 2)), np.zeros(len(pts), bool)
+    for start in range(0, len(pts), chunk):
+        p, n = pts[start:start + chunk], ng[start:start + chunk]
+        if light.kind == AREA:
+            t1, t2 = np.broadcast_to(m[:3, 0], p.shape), np.broadcast_to(m[:3, 1], p.shape)
+        else:
+            t1, t2 = _perpendicular_axes(p - m[:3, 3])
+        # height of each grid point over each receiver's plane: (centre − p)·n + grid · (t·n)
+        height = ((m[:3, 3] - p) * n).sum(axis=1)[:, None] + np.stack([(t1 * n).sum(1), (t2 * n).sum(1)], 1) @ grid.T
+        above = height > 0.0
+        count = above.sum(axis=1)
+        flat = above @ grid / np.maximum(count, 1)[:, None]                 # centroid in the emitter's axes
+        rows = slice(start, start + len(p))
+        out[0][rows] = m[:3, 3] + flat[:, :1] * t1 + flat[:, 1:] * t2
+        out[1][rows] = np.where(above[..., None], grid, np.inf).min(axis=1) - pad
+        out[2][rows] = np.where(above[..., None], grid, -np.inf).max(axis=1) + pad
+        out[3][rows] = count > 0
+    return out
+
+
+def _perpendicular_axes(directions: np.ndarray):
+    """Two unit axes (N × 3 each) perpendicular to each direction (N × 3) and to each other, right-handed
+    with the direction as the third."""
+    d = directions / np.maximum(np.linalg.norm(directions, axis=1, keepdims=True), 1e-30)
+    helper = np.where(np.abs(d[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    t1 = np.cross(helper, d)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    return t1, np.cross(d, t1)
+
+
+def local_rim_lights(light: Light, points: np.ndarray, geometric: np.ndarray, shading: np.ndarray
+                     ) -> list[tuple[Light | None, np.ndarray]] | None:
+    """For the techniques that work from one light point's map (Technique.rim_views), an area or sphere light
+    whose lit receivers (N × 3 world, with their geometric and shading normals) include some with its centre
+    at or below their horizon: the centre's map holds nothing on their rays to the part of the emitter they
+    see, and its tangent-plane rule leaves them lit. Such receivers take instead a stand-in for the part they
+    see (seen_emitter, _stand_in): an area light in the emitter's plane (a sphere light's disk, facing them),
+    centred on that part and as wide as it. They are
+    grouped by where the centroid falls on the emitter (RIM_CELLS_PER_SIDE cells per side), one stand-in per
+    group, averaged over it; the stand-in serves visibility only (the irradiance stays the whole emitter's).
+    Returned as [(the stand-in, or None for the centre's view; mask of the points each owns)]; None when no
+    receiver has the centre hidden. Receivers that see no part of the emitter keep the centre's view."""
+    if light.is_delta or light.kind == SUN or len(points) == 0:
+        return None
+    pts = np.asarray(points, float)
+    ng, n = np.asarray(geometric, float), np.asarray(shading, float)
+    to_centre = light.position - pts
+    reach = np.linalg.norm(to_centre, axis=1)
+    hidden = (np.einsum("ij,ij->i", ng, to_centre) <= 1e-6 * reach) & (np.einsum("ij,ij->i", n, to_centre) <= 0.0)
+    if not hidden.any():
+        return None
+    where = np.flatnonzero(hidden)
+    centroid, lo, hi, sees = seen_emitter(light, pts[where], ng[where])
+    where, centroid, lo, hi = where[sees], centroid[sees], lo[sees], hi[sees]
+    m = np.asarray(light.matrix, float)
+    half = np.array([light.size_x, light.size_y, 1.0]) / 2.0 if light.kind == AREA else np.full(3, light.radius)
+    local = (centroid - m[:3, 3]) @ m[:3, :3] / half         # the light's frame, in units of its extent
+    if light.kind != AREA:
+        # a sphere light's stand-in faces its group: group by the cube face of the direction to them too,
+        # so that no member lies behind it (encoded in a fourth coordinate, one cell per face)
+        away = (pts[where] - m[:3, 3]) @ m[:3, :3]
+        axis = np.argmax(np.abs(away), axis=1)
+        local = np.c_[local, 2.0 * axis + (away[np.arange(len(axis)), axis] > 0)]
+    owner = np.full(len(pts), -1)
+    stand_ins: list = []
+    pending = np.arange(len(where))
+    for round_ in range(RIM_ROUNDS):
+        # cells twice as fine each round, for the members whose group's stand-in fell below their horizon
+        groups = _rim_groups(local, pending, RIM_CELLS_PER_SIDE << round_)
+        last = round_ == RIM_ROUNDS - 1
+        if len(stand_ins) + len(groups) > RIM_MAX_VIEWS:      # too many views: back to the coarsest cells
+            groups, last = _rim_groups(local, pending, RIM_CELLS_PER_SIDE), True
+        left = []
+        for group in groups:
+            stand_in, ok = _stand_in(light, pts[where[group]], ng[where[group]], centroid[group], lo[group],
+                                     hi[group])
+            take = group if last else group[ok]
+            if len(take):
+                owner[where[take]] = len(stand_ins)
+                stand_ins.append(stand_in)
+            left += list(np.setdiff1d(group, take))
+        # a member its group's stand-in leaves below its horizon takes the built stand-in highest above its
+        # plane, if one is; only the others need finer groups
+        left = np.array(left, int)
+        best, height = _highest_stand_in(stand_ins, pts[where[left]], ng[where[left]])
+        owner[where[left[height > 0.0]]] = best[height > 0.0]
+        pending = left[height <= 0.0]
+        if last or not len(pending):
+            break
+    stray = np.flatnonzero(owner >= 0)          # any still below its own: the highest, where one is above
+    best, height = _highest_stand_in(stand_ins, pts[stray], ng[stray])
+    own = np.einsum("ij,ij->i", ng[stray], np.array([stand_ins[k].position for k in owner[stray]]).reshape(-1, 3)
+                    - pts[stray])
+    move = (own <= 0.0) & (height > 0.0)
+    owner[stray[move]] = best[move]
+    rest = owner < 0
+    return [(None, rest)] * bool(rest.any()) + [(light_, owner == i) for i, light_ in enumerate(stand_ins)]
+
+
+def _rim_groups(local: np.ndarray, members: np.ndarray, cells: int) -> list:
+    """The `members` (indices into `local`, centroids in the light's frame in units of its extent) grouped by
+    cells² (area) or cells³ (sphere) cells over the emitter's extent, and for a sphere light by the cube face
+    of their direction from it (local's fourth column)."""
+    cell = np.clip(np.floor((local[members, :3] + 1.0) / 2.0 * cells), 0, cells - 1).astype(int)
+    key = (cell[:, 0] * cells + cell[:, 1]) * cells + cell[:, 2]
+    if local.shape[1] > 3:                  # a sphere light's: the cube face of the direction too
+        key = key + cells ** 3 * local[members, 3].astype(int)
+    return [members[key == k] for k in np.unique(key)]
+
+
+def _highest_stand_in(stand_ins: list, pts, ng):
+    """For receivers (points, geometric normals), the index of the stand-in whose centre lies highest above
+    each one's tangent plane, of those that emit towards it, and that height (−inf with none)."""
+    if not stand_ins or not len(pts):
+        return np.zeros(len(pts), int), np.full(len(pts), -np.inf)
+    centres = np.array([light_.position for light_ in stand_ins])
+    height = ng @ centres.T - np.einsum("ij,ij->i", ng, pts)[:, None]
+    facing = pts @ np.array([light_.direction for light_ in stand_ins]).T > np.einsum(
+        "ij,ij->i", centres, np.array([light_.direction for light_ in stand_ins]))[None]
+    height = np.where(facing, height, -np.inf)
+    best = np.argmax(height, axis=1)
+    return best, height[np.arange(len(pts)), best]
+
+
+def _stand_in(light: Light, pts, ng, centroid, lo, hi):
+    """One stand-in light for a group of receivers (points, geometric normals, and what they see of the
+    emitter: seen_emitter's centroids and boxes), and which of them have its centre above their horizon
+    (local_rim_lights): an area light keeps its axes and becomes the rectangle of its plane that spans the
+    box; a sphere light's faces the group, in the plane of the disk it sees."""
+    m = np.asarray(light.matrix, float)
+    if light.kind == AREA:
+        axes, width = m[:3, :2], np.array([light.size_x, light.size_y])
+    else:                       # the disk that faces the group, in seen_emitter's axes
+        t1, t2 = _perpendicular_axes((pts - m[:3, 3]).mean(axis=0)[None])
+        axes, width = np.stack([t1[0], t2[0]], axis=1), np.full(2, 2.0 * light.radius)
+    middle = centroid.mean(axis=0)
+    lo, hi = lo.mean(axis=0), hi.mean(axis=0)          # the members' boxes in the emitter's axes, averaged
+    # Centred on the box, the stand-in spans no more than that part (a gather technique counts all of it as
+    # light); where the box's centre is below a member's horizon (the centre's tangent-plane rule would leave
+    # it lit), it is centred on the centroid instead, wide enough to cover the box.
+    box_centre = m[:3, 3] + axes @ ((lo + hi) / 2.0)
+    if (np.einsum("ij,ij->i", ng, box_centre - pts) > 0.0).all():
+        centre, size = box_centre, hi - lo
+    else:
+        at = (middle - m[:3, 3]) @ axes
+        centre, size = middle, 2.0 * np.maximum(np.abs(lo - at), np.abs(hi - at))
+    size = np.minimum(size, width)
+    mat = np.array(m)
+    mat[:3, 3] = centre
+    if light.kind != AREA:      # a rectangle facing the group (emitting along its -Z, right-handed)
+        mat[:3, 0], mat[:3, 1], mat[:3, 2] = axes[:, 1], axes[:, 0], np.cross(axes[:, 1], axes[:, 0])
+        size = size[::-1]
+    stand_in = replace(light, kind=AREA, matrix=mat, shape=RECTANGLE, size_x=float(size[0]), size_y=float(size[1]),
+                       radius=0.0, texture=None, use_soft_falloff=False, spot_axisless=False)
+    return stand_in, np.einsum("ij,ij->i", ng, centre - pts) > 0.0
 
 
 def to_local(world_to_local: np.ndarray, pts: np.ndarray) -> np.ndarray:

@@ -120,11 +120,12 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         with t.stage("irradiance"):
             frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
                            defines=light_defines(light))
-        # Only a wide sun's rim can light what its centre does not reach (lightview.sun_rim_faces)
-        rim_sun = technique.sun_rim_views and light.kind == SUN and light.angle > 0.0
+        # Only an emitter with an extent can light what its centre does not reach (lightview.sun_rim_faces,
+        # local_rim_lights): count such pixels on the GPU, for the techniques that take rim views
+        rim = technique.rim_views and not light.is_delta
+        centre = ((*(-light.direction), 0.0) if light.kind == SUN else (*light.position, 1.0)) if rim else None
         with t.stage("readback"):
-            receivers, hidden = _lit_bounds(frame, irradiance, bounds_buffer,
-                                            towards=-light.direction if rim_sun else None)
+            receivers, hidden = _lit_bounds(frame, irradiance, bounds_buffer, centre=centre)
         if receivers is None:
             stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
             continue
@@ -138,25 +139,19 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         else:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
-                faces = lit_xyz = lifted = None
-                # Only a clamped view can leave lit pixels outside, and only pixels with the sun's centre
+                parts = None
+                # Only a clamped view can leave lit pixels outside, and only pixels with the light's centre
                 # below their horizon need rim views: read the lit pixels back then.
-                rim = rim_sun and hidden > 0
-                if view.clamped or rim:
+                if view.clamped or hidden:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
-                if view.clamped:
-                    lifted = _lifted_points(gbuffer_array("g_normal")[lit], gbuffer_array("g_geometric")[lit],
-                                            lit_xyz)
-                    faces = lightview.split_faces(view, lit_xyz, lifted)
-                elif rim:
-                    faces = lightview.sun_rim_faces(light, view, gbuffer_array("g_geometric")[lit][:, :3],
-                                                    gbuffer_array("g_normal")[lit][:, :3])
-            if faces is None:
+                    lifted, parts = _view_parts(light, view, lit_xyz, gbuffer_array("g_normal")[lit],
+                                                gbuffer_array("g_geometric")[lit], rim=hidden > 0)
+            if parts is None:
                 rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
                                        stats, debug)
             else:
-                rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, lit_xyz,
+                rgb = _face_visibility(frame, technique, light, view, receivers, casters, parts, lit, lit_xyz,
                                        lifted, irradiance, object_bounds, caster_objects, visibility, stats, debug)
         with t.stage("accumulate"):
             samplers = {"g_irradiance": irradiance, "u_visibility": visibility,
@@ -180,15 +175,15 @@ _BOUNDS_BYTES = 32     # render/lit_bounds.comp: a count, encoded min and max xy
 _BOUNDS_RESET = np.array([0] + [0xFFFFFFFF] * 3 + [0] * 3 + [0], np.uint32).tobytes()
 
 
-def _lit_bounds(frame: Frame, irradiance, buffer, towards=None):
+def _lit_bounds(frame: Frame, irradiance, buffer, centre=None):
     """World box (lo, hi) of the covered pixels this light reaches, or None if it reaches none, and how many
-    of them have the direction `towards` (world, unit) at or below their horizon (0 when it is None): reduced
-    on the GPU (render/lit_bounds.comp), so only 32 bytes are read back. Exactly the float32 min and max."""
+    of them have the light's `centre` at or below their horizon (0 when it is None; (x, y, z, 0): a world
+    unit vector towards a sun's centre, (x, y, z, 1): a point): reduced on the GPU (render/lit_bounds.comp),
+    so only 32 bytes are read back. Exactly the float32 min and max."""
     buffer.write(_BOUNDS_RESET)
-    count_hidden = towards is not None
     frame.dispatch("render/lit_bounds.comp",
-                   {"u_count_hidden": int(count_hidden),
-                    "u_towards_light": tuple(towards) if count_hidden else (0.0, 0.0, 1.0)},
+                   {"u_count_hidden": int(centre is not None),
+                    "u_light_centre": tuple(float(v) for v in centre) if centre is not None else (0, 0, 1, 0)},
                    samplers={"g_irradiance": irradiance}, buffers={0: buffer})
     raw = np.frombuffer(buffer.read(), np.uint32)
     if raw[0] == 0:
@@ -234,12 +229,63 @@ def _lifted_points(normal: np.ndarray, geometric: np.ndarray, xyz: np.ndarray) -
     return xyz + normal[:, :3] * geometric[:, 3:4]
 
 
-def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, faces, lit, lit_xyz,
+@dataclass
+class ViewPart:
+    """Some of a light's lit pixels (`mask` over them) and the view they take: the light's single view (all
+    else None), a rotation `rotation` of the view frame `frame` (a cube face, a sun's rim view), or the single
+    view of a stand-in `light` (a local light's rim point, lightview.local_rim_lights)."""
+    mask: np.ndarray
+    light: object = None
+    frame: np.ndarray | None = None
+    rotation: np.ndarray | None = None
+
+
+def _view_parts(light, view, xyz, normal, geometric, rim: bool):
+    """The views a light's lit pixels (xyz, N × 3, with their g_normal and g_geometric texels) are split over,
+    as ViewParts, and where their shadow rays leave from (N × 3; None where no view needs it). None for the
+    parts when the single view holds them all. Rim views first take the pixels whose horizon hides the light's
+    centre; a clamped view's pixels outside it go to the cube faces (lightview.split_faces)."""
+    local_rim = rim and light.kind != SUN
+    lifted = _lifted_points(normal, geometric, xyz) if view.clamped or local_rim else None
+    parts = []
+    if rim and light.kind == SUN:
+        for rotation, mask in lightview.sun_rim_faces(light, view, geometric[:, :3], normal[:, :3]) or []:
+            if rotation is not None:
+                parts.append(ViewPart(mask, frame=view.view, rotation=rotation))
+    elif local_rim:
+        for point, mask in lightview.local_rim_lights(light, xyz, geometric[:, :3], normal[:, :3]) or []:
+            if point is not None:
+                parts.append(ViewPart(mask, light=point))
+    rest = ~np.any([p.mask for p in parts], axis=0) if parts else np.ones(len(xyz), bool)
+    parts += _face_parts(view, xyz, lifted, rest)
+    single = len(parts) == 1 and parts[0].light is None and parts[0].rotation is None
+    return lifted, (None if single or not parts else parts)
+
+
+def _face_parts(view, xyz, lifted, where, light=None) -> list:
+    """The pixels `where` (a mask over xyz) of a view: the ViewParts of its single view and of the cube faces
+    that take what a clamped view does not hold (lightview.split_faces); `light` is the view's stand-in light,
+    if any."""
+    index = np.flatnonzero(where)
+    faces = lightview.split_faces(view, xyz[index], None if lifted is None else lifted[index])
+    if faces is None:
+        return [ViewPart(where, light=light)] if where.any() else []
+    parts = []
+    for rotation, sub in faces:
+        mask = np.zeros(len(xyz), bool)
+        mask[index[sub]] = True
+        parts.append(ViewPart(mask, light=light, frame=None if rotation is None else view.view, rotation=rotation))
+    return parts
+
+
+def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, parts, lit, lit_xyz,
                      lifted, irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
-    """A light whose lit pixels do not fit one view: its single view for the pixels it holds, and one view per
-    cube face for the rest (see lightview.split_faces), each fitted to the receivers it owns, with its own
-    structures; every pixel takes the visibility of the view that owns it, so none is left outside every map.
-    A sun's rim views (lightview.sun_rim_faces) take the same path: rotations of its frame, as faces are."""
+    """A light whose lit pixels do not fit one view (`parts`, ViewParts from _view_parts): its single view for
+    the pixels it holds, one view per cube face for the rest (lightview.split_faces), a sun's rim views
+    (rotations of its frame, as faces are) and a local light's rim points (stand-in point lights with views of
+    their own, split into cube faces in turn where one view cannot hold their pixels), each fitted to the
+    receivers it owns, with its own structures; every pixel takes the visibility of the view that owns it, so
+    none is left outside every map."""
     t = frame.timings
     size = (frame.width, frame.height)
     owner = np.full(lit.shape, -1.0, np.float32)
@@ -247,35 +293,51 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
     merged_rgb, rgb_seen = frame.texture(size, 4), False
     face_debug: dict = {}
     lit_index = np.flatnonzero(lit.ravel())          # the order of position[lit], which the masks follow
-    for index, (_, mask) in enumerate(faces):
-        owner.reshape(-1)[lit_index[mask]] = index
-    owner_tex.write(owner.tobytes())
-    for index, (rotation, mask) in enumerate(faces):
+    queue = list(parts)
+
+    def own(first: int) -> None:                     # the pixels of queue[first:] to their parts
+        for index in range(first, len(queue)):
+            owner.reshape(-1)[lit_index[queue[index].mask]] = index
+        owner_tex.write(owner.tobytes())
+    own(0)
+    index = 0
+    while index < len(queue):
+        part = queue[index]
+        part_light = part.light or light
         rgb, casters = None, None
-        if rotation is None:                    # the light's single view keeps the pixels it holds
+        if part.light is None and part.rotation is None:    # the light's single view keeps the pixels it holds
             receivers, casters, face_view = view_receivers, view_casters, view
         else:
-            # the face holds its receivers and the points their shadow rays leave from (lifted off smooth
+            # the view holds its receivers and the points their shadow rays leave from (lifted off smooth
             # triangles), so a lifted point is looked up in a map instead of falling off it
-            pts = lit_xyz[mask] if lifted is None else np.concatenate([lit_xyz[mask], lifted[mask]])
+            pts = lit_xyz[part.mask] if lifted is None else np.concatenate([lit_xyz[part.mask], lifted[part.mask]])
             pts = pts.astype(np.float64)
             receivers = (pts.min(axis=0), pts.max(axis=0))
-            if light.casts_shadow and frame.geometry.has_casters:
-                casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers,
+            if part_light.casts_shadow and frame.geometry.has_casters:
+                casters = lightview.shadowing_caster_bounds(part_light, object_bounds, caster_objects, receivers,
                                                             frame.receiver_sides)
             if casters is not None:
                 with t.stage("light_view"):
-                    face_view = lightview.fit(light, receivers, casters, frame.settings.shadow_map_size,
-                                              frame=view.view, face=rotation, receiver_points=pts)
+                    face_view = lightview.fit(part_light, receivers, casters, frame.settings.shadow_map_size,
+                                              frame=part.frame, face=part.rotation, receiver_points=pts)
+                    more = []
+                    if face_view.clamped and part.light is not None and part.rotation is None:
+                        more = _face_parts(face_view, lit_xyz, lifted, part.mask, light=part.light)
+                if len(more) > 1 or (more and more[0].rotation is not None):
+                    # a rim point's view too wide for one map: it keeps what it holds, its faces take the rest
+                    held = [p for p in more if p.rotation is None]
+                    queue[index] = ViewPart(held[0].mask if held else np.zeros_like(part.mask), light=part.light)
+                    queue += [p for p in more if p.rotation is not None]
+                    own(index)
                 # Pixels outside a face's window lie where no caster can shadow them (fit's window holds the
                 # shadowable receivers); only a face too wide for its map would leave shadowable ones out.
-                if face_view.clamped:
+                elif face_view.clamped:
                     frame.warn(f"Light '{light.name}': some pixels fall outside its cube-face views "
                                "(please report this scene).")
         if casters is not None:
             view_debug: dict = {}
-            rgb = _view_visibility(frame, technique, light, face_view, irradiance, receivers, casters, face_out,
-                                   stats, view_debug, split=True)
+            rgb = _view_visibility(frame, technique, part_light, face_view, irradiance, receivers, casters,
+                                   face_out, stats, view_debug, split=True)
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))
@@ -287,6 +349,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                            samplers={"u_owner": owner_tex, "u_view_visibility": face_out,
                                      "u_view_rgb": rgb if rgb is not None else face_out},
                            images={0: out, 1: merged_rgb})
+        index += 1
     _keep_max(debug, face_debug)
     stats["lights_split"] = stats.get("lights_split", 0) + 1
     return merged_rgb if rgb_seen else None

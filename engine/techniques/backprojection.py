@@ -187,6 +187,7 @@ class Backprojection(Technique):
                    "bitmasks with correct occluder fusion, microquads, HSM/MSSM search-area refinement, depth "
                    "peeling. Area lights of every shape, point/spot radius as a disk, sun as a disk of "
                    "directions; textured lights through per-sample colours")
+    rim_views = True
     needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM, YSM, MICRORECTS)  # all it may use; needs_for picks
     options = (
         Option("bp_primitive", "MICRORECT", "Micro-occluders", "How depth-map texels become occluders",

@@ -58,9 +58,9 @@ class Technique:
     # Configurations the benchmark's --sweep traces (settings changes; RenderSettings fields or options).
     sweep: tuple[dict, ...] = MAP_SIZE_SWEEP
     # The technique works from the map of the light's centre, whose rays tell nothing about a receiver that has
-    # the centre below its horizon: for a sun, the pipeline gives such receivers a view from the rim point of
-    # the disk they see best instead (core.lightview.sun_rim_faces).
-    sun_rim_views = False
+    # the centre below its horizon: the pipeline gives such receivers a view from a rim point of the emitter
+    # they see instead (a sun's: core.lightview.sun_rim_faces; an area or sphere light's: local_rim_lights).
+    rim_views = False
 
     def needs_for(self, settings) -> tuple:
         """The structures to build for `settings` (names, or structures.need(NAME, **params) where options

@@ -6,7 +6,7 @@ class Hard(Technique):
     identifier = "HARD"
     label = "Hard shadow map"
     description = "Standard shadow map from the light centre: hard shadows, the speed baseline"
-    sun_rim_views = True
+    rim_views = True
 
     def visibility(self, frame, lc, out):
         frame.dispatch("hard/visibility.comp", lc.uniforms, samplers={

@@ -6,7 +6,7 @@ class Pcf(Technique):
     identifier = "PCF"
     label = "PCF"
     description = "Fixed-size percentage-closer filter: uniform blur, ignores light size and distance"
-    sun_rim_views = True
+    rim_views = True
     options = (
         Option("pcf_radius", 2.0, "Radius", "PCF kernel radius in texels", min=0.0, max=256.0),
         Option("pcf_taps", 5, "Taps", "Taps per side of the square PCF kernel (bilinear each)", min=1, max=33),

@@ -9,7 +9,7 @@ class Pcss(Technique):
     identifier = "PCSS"
     label = "PCSS"
     description = "Blocker search and variable-size PCF (Fernando 2005): plausible, not exact, soft shadows"
-    sun_rim_views = True
+    rim_views = True
     options = (
         Option("pcss_blocker_samples", 32, "Blocker Samples", "Depth-map samples of the blocker search",
                min=1, max=1024),

@@ -174,7 +174,7 @@ def kd_tiles(need: np.ndarray, cell: int, tile_size: int, cells_x: int, cells_y:
 
 class Pvsm(Technique):
     identifier = "PVSM"
-    sun_rim_views = True
+    rim_views = True
     label = "PVSM (revisited PCSS)"
     description = ("Predicted virtual soft shadow maps (Shen et al. 2011): z-averaging on a low-resolution map, "
                    "exact box filtering of texels, analytic anisotropic anti-aliasing, perceptual map resolution, "

@@ -134,7 +134,7 @@ class SubPixelShadowMaps(Technique):
     description = ("Hard shadows from the light centre with sub-texel edges: a conservative triangle map, "
                    "3×3 look-ups and silhouette recovery (Lecocq et al. 2014)")
     needs = (CONSERVATIVE_MAP, DEPTH_MAP)    # the hard map decides shadow-terminator pixels, as HARD does
-    sun_rim_views = True
+    rim_views = True
     options = (
         Option("spsm_quantiser", "POW5", "Slope Quantiser", "How the texel stores its depth slopes (§3.4)",
                items=(("POW5", "Power 5 (paper)", "Q(d) = 127·(1 + ((2/π)·atan d)^5): fine at grazing angles"),

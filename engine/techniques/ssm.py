@@ -68,6 +68,7 @@ class SoftShadowMaps(Technique):
     description = ("Atty et al. 2006: occluder-map texels scattered as micro-patches onto a soft shadow map. "
                    "Casters shadow receivers (Object → Penumbra → Shadow Role), an object itself too; "
                    "disk, ellipse, sphere and sun lights use their bounding rectangle")
+    rim_views = True
     needs = (SSM_MAPS, SOFT_SHADOW_MAP, RECEIVER_MASK)    # with parameters from the options: needs_for
     options = (
         Option("ssm_map_size", 256, "Occluder Map Size",

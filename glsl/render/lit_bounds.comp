@@ -1,9 +1,9 @@
 // Which covered pixels this light reaches, reduced on the GPU to what the pipeline needs on the CPU: their
 // count and the world-space box around them (engine/render/pipeline.py _lit_bounds). A few bytes come back
 // instead of the whole irradiance image. With u_count_hidden it also counts the lit pixels that see the light's
-// axis point (u_towards_light) at or below their horizon, by both normals: a sun's rim views are built only when
-// there are such pixels (engine/core/lightview.py sun_rim_faces, which makes the exact test on the CPU), so
-// the normals are read back only then. The count errs on the side of more (a looser threshold).
+// centre at or below their horizon, by both normals: rim views are built only when there are such pixels
+// (engine/core/lightview.py sun_rim_faces and local_rim_lights, which make the exact test on the CPU), so the
+// normals are read back only then. The count errs on the side of more (a looser threshold).
 // Floats are compared as order-preserving unsigned integers (sign bit flipped for positives, all bits for
 // negatives), so atomicMin/atomicMax on uints give the exact float32 minimum and maximum.
 #include "common/pixel.glsl"
@@ -16,7 +16,7 @@ layout(std430, binding = 0) buffer LitBounds {
 } result;
 
 uniform int u_count_hidden;
-uniform vec3 u_towards_light;       // world unit vector towards the light's axis point (a sun's centre)
+uniform vec4 u_light_centre;    // w = 0: world unit vector towards a sun's centre; w = 1: a local light's position
 
 shared uint s_count;
 shared uint s_lo[3];
@@ -44,9 +44,13 @@ void main() {
             atomicMin(s_lo[i], u);
             atomicMax(s_hi[i], u);
         }
-        if (u_count_hidden != 0 && dot(texelFetch(g_geometric, px, 0).xyz, u_towards_light) <= 1e-5
-                && dot(texelFetch(g_normal, px, 0).xyz, u_towards_light) <= 1e-5)
-            atomicAdd(s_hidden, 1u);
+        if (u_count_hidden != 0) {
+            vec3 to_centre = u_light_centre.w == 0.0 ? u_light_centre.xyz : u_light_centre.xyz - p;
+            to_centre /= max(length(to_centre), 1e-30);
+            if (dot(texelFetch(g_geometric, px, 0).xyz, to_centre) <= 1e-5
+                    && dot(texelFetch(g_normal, px, 0).xyz, to_centre) <= 1e-5)
+                atomicAdd(s_hidden, 1u);
+        }
     }
     barrier();
     if (gl_LocalInvocationIndex == 0u && s_count > 0u) {    // one global update per work group

@@ -1,0 +1,139 @@
+"""Area and sphere lights whose centre lies below a receiver's horizon while part of the emitter lies above it
+(issue 10's horizon class beyond suns): the map of the light's centre holds nothing on such a receiver's rays,
+so every shadow-map technique left it lit. The pipeline now gives those receivers the view of a stand-in for
+the part of the emitter they see (core.lightview.local_rim_lights)."""
+import math
+
+import numpy as np
+import pytest
+
+from penumbra.engine.core import lightview
+from penumbra.engine.core.snapshot import AREA, DISK, POINT, SQUARE, Light
+
+
+def _seen_share(light, pts, normals, n=32):
+    """The share of a light's emitter above each receiver's tangent plane, by brute force on an n² grid: the
+    irradiance a receiver left lit would wrongly keep, up to cosines."""
+    c = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+    grid = np.stack(np.meshgrid(c, c), -1).reshape(-1, 2)
+    if light.kind == AREA and light.shape == SQUARE:
+        axes = np.broadcast_to(np.eye(3)[:2], (len(pts), 2, 3)) * (light.size_x / 2.0)
+    else:
+        grid = grid[(grid ** 2).sum(1) <= 1.0]
+        if light.kind == AREA:
+            axes = np.broadcast_to(np.eye(3)[:2], (len(pts), 2, 3)) * (light.size_x / 2.0)
+        else:                                       # the disk facing each receiver
+            d = pts - light.position
+            d /= np.linalg.norm(d, axis=1, keepdims=True)
+            a = np.cross(d, [0.3, 0.5, 0.8])
+            a /= np.linalg.norm(a, axis=1, keepdims=True)
+            axes = np.stack([a, np.cross(d, a)], 1) * light.radius
+    emitter = light.position + np.einsum("mj,njk->nmk", grid, axes)
+    return (np.einsum("nmk,nk->nm", emitter - pts[:, None], normals) > 0.0).mean(axis=1)
+
+
+def _light(kind, size, height):
+    m = np.eye(4)
+    m[:3, 3] = (0.0, 0.0, height)
+    if kind == AREA:                    # emitting up, towards the floor above it
+        m[:3, :3] = np.diag([1.0, -1.0, -1.0])
+        return Light("Area", AREA, m, np.ones(3), 100.0, DISK if size < 0 else SQUARE, abs(size), abs(size))
+    return Light("Sphere", POINT, m, np.ones(3), 100.0, radius=size)
+
+
+@pytest.mark.parametrize("tilt", [0.1, 0.3])
+@pytest.mark.parametrize("kind,size", [(AREA, 2.0), (AREA, -2.0), (POINT, 1.0)])
+def test_stand_ins_sit_on_the_part_of_the_emitter_each_receiver_sees(kind, size, tilt):
+    """Receivers on a floor through the light's centre height band: those with the centre below their tangent
+    plane each get exactly one stand-in, lying above their plane and within the emitter's reach; the others
+    keep the centre's view; a light fully above every horizon needs none. Normals tilted by `tilt` (standard
+    deviation per axis): with strongly varied ones (17° on average) the cap on views leaves some rim receivers
+    with a stand-in below their horizon (lit, as before stand-ins); those see only a corner of the emitter,
+    so weighed by how much of it each sees they are a small share (at most 12 %, a disk's, measured)."""
+    rng = np.random.default_rng(3)
+    pts = np.c_[rng.uniform(-3, 3, (400, 2)), np.zeros(400)]
+    normals = np.c_[rng.normal(0, tilt, (400, 2)), np.ones(400)]
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    light = _light(kind, size, -0.3)                    # its centre just under the floor
+    parts = lightview.local_rim_lights(light, pts, normals, normals)
+    masks = np.array([mask for _, mask in parts])
+    assert (masks.sum(axis=0) == 1).all(), "every receiver belongs to exactly one view"
+    hidden = np.einsum("ij,ij->i", normals, light.position - pts) <= 0.0
+    above = []
+    for stand_in, mask in parts:
+        if stand_in is None:
+            stay = mask & hidden                        # hidden receivers stay only if they see none of it
+            assert not stay.any() or not lightview.seen_emitter(light, pts[stay], normals[stay])[3].any()
+            continue
+        assert hidden[mask].all() and stand_in.kind == AREA
+        assert np.isclose(np.linalg.det(stand_in.matrix[:3, :3]), 1.0)      # a rotation, as every light's
+        assert (np.einsum("ij,j->i", pts[mask] - stand_in.position, stand_in.direction) > 0.0).all(), \
+            "the stand-in emits towards its receivers"
+        up = np.einsum("ij,ij->i", normals[mask], stand_in.position - pts[mask]) > 0.0
+        above += list(zip(up, _seen_share(light, pts[mask], normals[mask])))
+        reach = abs(size) / 2.0 * math.sqrt(2.0) if kind == AREA else size
+        assert np.linalg.norm(stand_in.position - light.position) <= reach + 1e-9
+        width = abs(size) if kind == AREA else 2.0 * size
+        assert 0.0 < stand_in.size_x <= width + 1e-9 and 0.0 < stand_in.size_y <= width + 1e-9
+    # above their planes, but for some whose normals stray far from their group's and see only a corner no
+    # stand-in sits on: weighed by how much of the emitter each sees, what is left lit is a small share
+    up, seen = np.array(above).T
+    print(len(up), up.mean(), (up * seen).sum() / seen.sum(), len(parts))
+    assert len(up) > 20 and (up * seen).sum() / seen.sum() >= 0.85     # measured: 0.88 (disk) to 0.9998
+    coarsest = lightview.RIM_CELLS_PER_SIDE ** (2 if kind == AREA else 3)
+    assert 1 < len(parts) <= 1 + lightview.RIM_MAX_VIEWS + coarsest * (1 if kind == AREA else 6)
+    assert lightview.local_rim_lights(_light(kind, size, 2.0), pts, normals, normals) is None
+    assert lightview.local_rim_lights(_light(kind, 0.0, -0.3), pts, normals, normals) is None
+
+
+def _sliver(kind, size):
+    """A floor tilted 25° with a block on it, under an area light (size × size) or a sphere light (radius
+    size / 2) 3 m away whose centre lies 10° below the floor's plane: the floor sees only the top of the
+    emitter, past the block, and Cycles shadows the floor down the slope from it."""
+    tilt, below = 0.436, math.radians(10.0)
+    normal = [0.0, -math.sin(tilt), math.cos(tilt)]
+    up_slope = [0.0, math.cos(tilt), math.sin(tilt)]
+    to_light = [math.cos(below) * t - math.sin(below) * n for t, n in zip(up_slope, normal)]
+    foot = [0.0, math.cos(tilt), math.sin(tilt)]
+    block = [f + 0.45 * n for f, n in zip(foot, normal)]
+    view = [f - 1.8 * t for f, t in zip(foot, up_slope)]
+    light = dict(name="Light", type=kind, location=[b + 3.0 * u for b, u in zip(block, to_light)], target=block,
+                 scale=[1, 1, 1], scale_kind="one", distance=3.0)
+    if kind == "AREA":
+        light.update(shape="SQUARE", size=size, size_y=size, energy=360.0)
+    else:
+        light.update(radius=size / 2.0, soft_falloff=True, energy=1350.0)
+    return dict(seed=0, objects=[dict(name="Block", primitive="CUBE", transform="plain", location=block,
+                                      rotation=[tilt, 0.0, 0.0], scale=[0.6, 0.3, 0.45], smooth=False)],
+                floor=dict(half_size=8.0, rotation=[tilt, 0.0, 0.0], z=0.0), lights=[light],
+                camera=dict(ortho=True, location=[v + 5.0 * n for v, n in zip(view, normal)], target=view,
+                            lens=40.0, ortho_scale=4.0, inside=None))
+
+
+def _xfail(reason):
+    return pytest.mark.xfail(strict=True, reason=reason)
+
+
+GATHER_AREA = ("over bound in the stand-in's view: the umbra behind the block fades down the slope where the floor "
+               "sees the emitter's sliver edge-on")
+CASES = [("AREA", t) for t in ("HARD", "PCF", "PCSS", "SPSM", "PVSM")] + [
+    pytest.param("AREA", "BACKPROJECTION", marks=_xfail("BACKPROJECTION 0.61 -> 0.239 against 0.216: " + GATHER_AREA)),
+    pytest.param("AREA", "SSM", marks=_xfail("SSM 0.44 -> 0.192 against 0.146: " + GATHER_AREA)),
+] + [("POINT", t) for t in ("HARD", "PCF", "SPSM", "PVSM")] + [
+    pytest.param("POINT", "PCSS", marks=_xfail("PCSS 0.64 -> 0.178 against 0.160: " + GATHER_AREA)),
+    pytest.param("POINT", "BACKPROJECTION", marks=_xfail("BACKPROJECTION 0.64 -> 0.291 against 0.220: " + GATHER_AREA)),
+    pytest.param("POINT", "SSM", marks=_xfail("SSM 0.44 -> 0.224 against 0.150: " + GATHER_AREA)),
+]
+
+
+@pytest.mark.parametrize("kind,technique", CASES)
+def test_a_light_below_a_tilted_floor_shadows_what_the_floor_sees_of_it(kind, technique):
+    """Before the stand-ins every shadow-map technique left the whole floor lit: mae_shadow 0.61 (area light)
+    and 0.64 (sphere light), SSM 0.44. Measured with them: HARD 0.218 / 0.179, PCF 0.213 / 0.174, PCSS
+    0.119 / 0.178, SPSM 0.217 / 0.179, PVSM 0.037 / 0.104 (REFERENCE 0.015 / 0.024)."""
+    pytest.importorskip("bpy")
+    from penumbra.engine.measure import fuzz
+    m, bound = fuzz.shadow_score(_sliver(kind, 2.0), technique)
+    print(kind, technique, m["mae_shadow"], bound, m["n_shadow"])
+    assert m["n_shadow"] > 2500
+    assert m["mae_shadow"] <= bound
