@@ -276,7 +276,8 @@ class SsmMaps:
 def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
     """Occluder maps (front-most casters; farthest back faces, §3.5), linear depth from the light centre and
     object index (empty: NO_OCCLUDER or 0, index −1), and the receiver maps of the camera's receiver pixels
-    (glsl/ssm/receivers.comp): near/far (depth, receiver point; 0: none) and near_n/far_n (normal, bias)."""
+    (glsl/ssm/receivers.comp): near/far (depth, receiver point; 0: none), near_n/far_n (normal, bias) and
+    near_c/far_c (the receiver's own plane)."""
     prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
     jobs = [("front", casters, False, False)]
     if two_pass:
@@ -291,11 +292,14 @@ def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
     bits = {0: frame.texture(size, 1, dtype="u4"), 1: frame.texture(size, 1, dtype="u4")}    # zero-filled
     for name in ("near", "near_n", "far", "far_n"):
         out[name] = frame.texture(size, 4)
+    for name in ("near_c", "far_c"):
+        out[name] = frame.texture(size, 1)
     uniforms = {**view.uniforms(), **frame.bias_uniforms, "u_has_mask": int(mask is not None)}
     samplers = {"g_irradiance": lc.irradiance, "u_receiver_mask": mask if mask is not None else bits[0]}
     frame.dispatch("ssm/receivers.comp", uniforms, samplers=samplers, images=bits, defines={"PASS": 0})
     frame.dispatch("ssm/receivers.comp", uniforms, samplers=samplers, defines={"PASS": 1},
-                   images={**bits, 2: out["near"], 3: out["near_n"], 4: out["far"], 5: out["far_n"]})
+                   images={**bits, 2: out["near"], 3: out["near_n"], 4: out["far"], 5: out["far_n"],
+                           6: out["near_c"], 7: out["far_c"]})
     for t in bits.values():
         frame.give_back(t)
     return out
