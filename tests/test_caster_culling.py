@@ -93,3 +93,29 @@ def test_a_low_area_light_over_the_ground_is_on_one_side_of_it():
     assert lightview._light_side(light, ground, 1.0) == 0.0        # a plane at 1 m: the square spans it
     reach = float(lightview._light_reach(light, ground))
     assert reach < 1.26 < 0.5 * np.hypot(2.5, 2.5)
+
+
+def test_a_closed_convex_shell_around_the_camera_hides_every_light_outside_it():
+    """lightview.enclosing_shell, which lets SSM leave a light unlit on every visible receiver (fuzz 8005, 8010,
+    8015, 8107: the camera inside a huge ball under a sun): the camera's near plane strictly inside a closed
+    convex caster, the light wholly outside it. Not for a light inside the shell, a camera outside it, a
+    shell with a face missing (an open box lets light in), or a shell that is no caster."""
+    from penumbra.engine.core.snapshot import SUN, Light
+    room = stress.box((-3, -3, 0), (3, 3, 3))
+    sun = Light("Sun", SUN, stress.look_at((4.0, 2.0, 9.0), (0.0, 0.0, 0.0)), np.ones(3), 3.0, angle=3.0)
+    lamp = stress.area_light((0.5, 0.0, 2.0), size=0.4)
+    far_lamp = stress.area_light((0.5, 0.0, 5.0), size=0.4)          # above the roof
+    inside, outside = stress.camera(eye=(1.5, -1.5, 1.5), target=(0, 0, 0.5), fov=70.0), stress.camera()
+    snap = stress.assemble([("Room", room, True, True)], [sun], inside, "room")
+    assert lightview.enclosing_shell(snap, sun, [0]) == 0
+    assert lightview.enclosing_shell(snap, far_lamp, [0]) == 0
+    assert lightview.enclosing_shell(snap, lamp, [0]) is None
+    assert lightview.enclosing_shell(snap, sun, []) is None
+    assert lightview.enclosing_shell(stress.assemble([("Room", room, True, True)], [sun], outside, "out"),
+                                     sun, [0]) is None
+    # the room without its roof (the two triangles whose corners all lie at z = 3)
+    open_room = room[~np.all(np.isclose(room[:, :, 2], 3.0), axis=1)]
+    assert len(open_room) == 10
+    snap = stress.assemble([("Room", open_room, True, True)], [sun], inside, "open")
+    assert not snap.is_closed(0)
+    assert lightview.enclosing_shell(snap, sun, [0]) is None

@@ -71,6 +71,19 @@ SCENES = {
         floor=dict(half_size=6.0, rotation=[0.0, 0.0, 0.0], z=0.0),
         lights=[_light("Sun", "SUN", (0.25, 0.15, 0.5), (0.0, 0.0, 0.0), 3.0, angle=0.1)],
         camera=_camera((0.5, -4.0, 3.5), (0.0, 0.0, 0.3), lens=24.0)),
+    # The camera inside a closed ball 12 m across under a sun 3 rad wide, a lamp and a smaller ball inside with
+    # it (fuzz 8005, 8010, 8015, 8107): the sun lights nothing the camera sees. From the inside most of a wide
+    # sun's rays leave the shell under the silhouette of its half turned to the sun, which only the
+    # back-face map holds, and the two maps merge by maximum (§3.5): SSM let the sun through.
+    "ball_around_camera_under_wide_sun": dict(
+        seed=-4,
+        objects=[_object("Shell", "UV_SPHERE", (0.0, 0.0, 1.0), (6.0, 6.0, 6.0)),
+                 _object("Ball", "ICO_SPHERE", (0.5, 0.8, -1.2), (0.6, 0.6, 0.6))],
+        floor=None,
+        lights=[_light("Sun", "SUN", (-6.0, -5.0, 4.0), (0.0, 0.0, 0.5), 6.0, angle=3.0),
+                _light("Lamp", "POINT", (-0.8, -0.4, 2.5), (0.0, 0.0, 0.0), 900.0, radius=0.3,
+                       soft_falloff=True)],
+        camera=_camera((0.3, -2.0, 3.5), (0.2, 0.6, -2.5), lens=30.0)),
 }
 
 

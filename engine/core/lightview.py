@@ -579,6 +579,38 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
     return object_bounds[keep, 0].min(axis=0), object_bounds[keep, 1].max(axis=0)
 
 
+def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int | None:
+    """A closed convex caster among `casters` (object indices) that holds the camera's whole near plane
+    while `light` lies wholly outside it, or None. Then every point the camera sees lies inside it or on its
+    inner surface, and every path from there to any point of the light crosses it: the light reaches none of
+    the visible receivers (a room or a huge ball around the camera, lit from outside)."""
+    cam = snap.camera
+    ndc = np.array([[x, y, -1.0, 1.0] for x in (-1.0, 1.0) for y in (-1.0, 1.0)])
+    near = ndc @ np.linalg.inv(np.asarray(cam.projection, float) @ np.asarray(cam.view, float)).T
+    near = near[:, :3] / near[:, 3:]
+    if not np.all(np.isfinite(near)):
+        return None
+    wanted = set(int(i) for i in casters)
+    bounds = snap.object_bounds()
+    for index, (normals, offsets) in snap.convex_objects(max_faces, around=near, bounds=bounds).items():
+        if index not in wanted:
+            continue
+        scale = max(float(np.abs(bounds[index]).max()), 1.0)
+        inside = float((near @ normals.T - offsets).max()) < -1e-4 * scale     # strictly: not on its surface
+        if inside and _light_outside(light, normals, offsets) and snap.is_closed(index):
+            return index
+    return None
+
+
+def _light_outside(light: Light, normals: np.ndarray, offsets: np.ndarray) -> bool:
+    """Whether the whole light (its extent included) lies strictly outside the convex region n·p ≤ offset:
+    beyond one of its face planes. A sun lies outside every bounded region (its rays come from infinity)."""
+    if light.kind == SUN:
+        return True
+    return bool(np.any(normals @ np.asarray(light.position, float) - offsets > np.maximum(
+        _light_reach(light, normals), 1e-9)))
+
+
 def _light_inside(light: Light, normals: np.ndarray, offsets: np.ndarray) -> bool:
     """Whether the whole light (its extent included) lies strictly inside the convex region n·p ≤ offset."""
     if light.kind == SUN:

@@ -250,6 +250,23 @@ class SceneSnapshot:
                 out[int(index)] = (-n, -d)
         return out
 
+    def is_closed(self, index: int) -> bool:
+        """Whether object `index`'s drawn triangles close up into a watertight surface: every edge shared by
+        exactly two of them, corners matched to 1e-6 of the object's extent. Only then does every path from
+        its inside to its outside cross it (convex_objects alone admits an open dome)."""
+        p = self._drawn_triangles(self.object_id == index)[0]
+        if len(p) < 4:
+            return False
+        lo, hi = p.reshape(-1, 3).min(axis=0), p.reshape(-1, 3).max(axis=0)
+        step = 1e-6 * max(float(np.abs(hi - lo).max()), 1e-30)
+        corners = np.round((p - lo) / step).astype(np.int64)                      # (T, 3, 3) grid keys
+        _, vertex = np.unique(corners.reshape(-1, 3), axis=0, return_inverse=True)
+        vertex = vertex.reshape(-1, 3)
+        edges = np.sort(np.stack([vertex[:, [0, 1]], vertex[:, [1, 2]], vertex[:, [2, 0]]], axis=1).reshape(-1, 2),
+                        axis=1)
+        _, counts = np.unique(edges, axis=0, return_counts=True)
+        return bool(np.all(counts == 2))
+
     def terminator_offset(self) -> tuple[float, str | None]:
         """The Shadow Terminator Geometry Offset the visible objects share (Cycles' default 0.1 when there are
         none), and a warning when they differ: the G-buffer carries no object index, so one value serves

@@ -66,11 +66,13 @@ def scatter(frame, maps, patches, precision: str, method: str, weighted: bool):
     ctx, view = frame.ctx, maps.view
     size = (view.width, view.height)
     defines = {"SSM_WEIGHTED": int(weighted)}
-    uniforms = {**view.uniforms(), "u_half": maps.half, "u_ortho": int(view.is_ortho), "u_bias_texels": maps.bias}
+    uniforms = {**view.uniforms(), **frame.bias_uniforms, "u_half": maps.half, "u_ortho": int(view.is_ortho),
+                "u_bias_texels": maps.bias}
     patches.buffer.bind_to_storage_buffer(0)
     m = patches.count
     receivers = {name: maps.maps[key] for name, key in (("u_near_a", "near"), ("u_near_b", "near_n"),
-                                                         ("u_far_a", "far"), ("u_far_b", "far_n"))}
+                                                         ("u_near_c", "near_c"), ("u_far_a", "far"),
+                                                         ("u_far_b", "far_n"), ("u_far_c", "far_c"))}
     if method == "COMPUTE":
         for binding in (1, 2):
             t = frame.texture(size, 1, dtype="u4")     # zero-filled

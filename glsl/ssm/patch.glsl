@@ -27,15 +27,27 @@ bool depth_valid(float z) {
 }
 
 // A receiver of one soft-shadow-map texel, from the records of ssm/receivers.comp (a: depth, point; b:
-// normal, bias with the through-surface flag as its sign).
-Receiver ssm_receiver(vec4 a, vec4 b) {
+// normal, bias with the through-surface flag as its sign; c: its own plane).
+Receiver ssm_receiver(vec4 a, vec4 b, float c) {
     Receiver r;
     r.local = a.yzw;
     r.normal = b.xyz;
     r.map = vec3(0.0, 0.0, -a.w);       // only its depth is read (receiver_depth_at)
     r.through_surface = b.w < 0.0;
     r.bias = r.through_surface ? -b.w - 1.0 : b.w;
+    r.own_plane = c;
     return r;
+}
+
+// Where a receiver's micro-patches are back-projected from (§3.4): the texel's window centre `t` at the
+// depth `zr` where the receiver's plane crosses that texel's ray, as the paper's receiver map has it;
+// for a receiver lit through its own smooth triangle, the lifted start of its shadow ray. Which of its own
+// surface's patches stop that ray depends on where the ray crosses its own plane (own_surface_blocks),
+// and seen from a point on that plane every own patch lies edge-on.
+void receiver_eye(Receiver r, inout vec2 t, inout float zr) {
+    if (!r.through_surface) return;
+    t = window_coords(r.local);
+    zr = -r.local.z;
 }
 
 // Whether the micro-patch of occluder texel `patch_texel` (depth zo) can shadow receiver r at all. Every
@@ -45,11 +57,14 @@ Receiver ssm_receiver(vec4 a, vec4 b) {
 // receiver's slope-scaled bias (common/light_view.glsl receiver_depth_at).
 bool patch_can_shadow(Receiver r, vec2 patch_texel, float zo) {
     if (zo < receiver_depth_at(r, patch_texel + 0.5)) return true;
+    // A receiver aimed through its own smooth triangle: the shadow-map techniques' rule for it, its own
+    // surface (or anything nearer) where the patch's ray crosses its plane stops the ray.
+    if (r.through_surface) return own_surface_blocks(r, zo, patch_texel + 0.5);
     // With the light's centre on or below the plane the shared rule lets nothing count (every ray from the
     // centre meets the receiver from below), but part of an area light or a wide sun may still be above it,
     // and a patch above the plane, between it and the receiver, hides some of that part: above the plane
     // along the patch's ray.
-    if (r.through_surface || centre_above_plane(r)) return false;   // the shared rule decided
+    if (centre_above_plane(r)) return false;   // the shared rule decided
     // Above the plane by more than the bias at the patch's depth (beyond the crossing, for a ray rising
     // through the plane), and in front of the receiver.
     vec2 h = plane_along_map_ray(r.normal, dot(r.normal, r.local), patch_texel + 0.5);
@@ -104,15 +119,14 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
     return w.x * w.y;
 }
 
-// Fraction of the light hidden by the patch of texel `patch` at depth zo from a receiver at texel
-// centre `t_texel`, depth zr. 0 when the patch is not strictly in front of the receiver.
-float patch_occlusion(vec2 patch_texel, float zo, vec2 t_texel, float zr) {
+// Fraction of the light hidden by the patch of texel `patch` at depth zo from a receiver at window
+// position t, depth zr (receiver_eye). 0 when the patch is not strictly in front of the receiver.
+float patch_occlusion(vec2 patch_texel, float zo, vec2 t, float zr) {
     if (!depth_valid(zr)) return 0.0;
     vec2 tt = map_texel_window();
     if (zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     float s = penumbra_spread(zo, zr, u_ortho);
     if (!(s > 0.0)) return 0.0;
-    vec2 t = map_window(t_texel);
     vec2 lo = map_window(patch_texel), hi = lo + tt;
     // Light [-h, h] → [0, 1]:  a = 1/2 + (lo - t) / (2 h s).  Clamping keeps the infinities finite.
     vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);    // 1e-9 as in weighted_fraction

@@ -21,11 +21,14 @@ layout(r32ui, binding = 0) uniform uimage2D u_near_bits;   // ~depth bits of the
 layout(r32ui, binding = 1) uniform uimage2D u_far_bits;    // depth bits of the farthest pixel; 0: none
 #if PASS == 1
 // a: depth (0: no receiver), receiver point (light frame, normal-offset); b: its geometric normal (light
-// frame), its slope-scaled bias, negated (less 1) when the receiver is lit through its own surface.
+// frame), its slope-scaled bias, negated (less 1) when the receiver is lit through its own surface; c: its
+// own surface's plane offset (Receiver.own_plane, for own_surface_blocks).
 layout(rgba32f, binding = 2) uniform writeonly image2D u_near_a;
 layout(rgba32f, binding = 3) uniform writeonly image2D u_near_b;
 layout(rgba32f, binding = 4) uniform writeonly image2D u_far_a;
 layout(rgba32f, binding = 5) uniform writeonly image2D u_far_b;
+layout(r32f, binding = 6) uniform writeonly image2D u_near_c;
+layout(r32f, binding = 7) uniform writeonly image2D u_far_c;
 #endif
 
 // Depth along the map ray through texel position `pos` at which the plane through `point` (light frame)
@@ -72,8 +75,9 @@ void main() {
         // and let the receiver's own surface shadow it.
         vec4 a = vec4(z, r.local);
         vec4 b = vec4(r.normal, r.through_surface ? -1.0 - r.bias : r.bias);
-        if (near) { imageStore(u_near_a, t, a); imageStore(u_near_b, t, b); }
-        if (far) { imageStore(u_far_a, t, a); imageStore(u_far_b, t, b); }
+        vec4 c = vec4(r.own_plane);
+        if (near) { imageStore(u_near_a, t, a); imageStore(u_near_b, t, b); imageStore(u_near_c, t, c); }
+        if (far) { imageStore(u_far_a, t, a); imageStore(u_far_b, t, b); imageStore(u_far_c, t, c); }
 #endif
     }
 }

@@ -14,11 +14,24 @@ layout(r32ui, binding = 1) uniform uimage2D u_sum_near;
 layout(r32ui, binding = 2) uniform uimage2D u_sum_far;
 uniform sampler2D u_near_a;     // ssm/receivers.comp's records of the nearest and the farthest receiver
 uniform sampler2D u_near_b;
+uniform sampler2D u_near_c;
 uniform sampler2D u_far_a;
 uniform sampler2D u_far_b;
+uniform sampler2D u_far_c;
 uniform int u_count;
 uniform int u_chunk;
 uniform int u_chunk_size;
+
+// The share of the light patch p hides from the receiver of one record (a, b, c) of `texel`.
+float record_occlusion(Patch p, ivec2 texel, vec4 a, sampler2D b_map, sampler2D c_map) {
+    if (!depth_valid(a.x)) return 0.0;
+    Receiver r = ssm_receiver(a, texelFetch(b_map, texel, 0), texelFetch(c_map, texel, 0).r);
+    if (!patch_can_shadow(r, p.data.xy, p.data.z)) return 0.0;
+    vec2 t = map_window(vec2(texel) + 0.5);
+    float zr = a.x;
+    receiver_eye(r, t, zr);
+    return patch_occlusion(p.data.xy, p.data.z, t, zr);
+}
 
 void main() {
     int index = int(gl_GlobalInvocationID.x);
@@ -32,14 +45,8 @@ void main() {
     int k0 = min(u_chunk * u_chunk_size, count), k1 = min(k0 + u_chunk_size, count);
     ivec2 texel = lo + ivec2(k0 % max(n.x, 1), k0 / max(n.x, 1));
     for (int k = k0; k < k1; ++k) {
-        vec2 centre = vec2(texel) + 0.5;
-        vec4 na = texelFetch(u_near_a, texel, 0), fa = texelFetch(u_far_a, texel, 0);
-        float on = depth_valid(na.x) && patch_can_shadow(ssm_receiver(na, texelFetch(u_near_b, texel, 0)),
-                                                         p.data.xy, p.data.z)
-                 ? patch_occlusion(p.data.xy, p.data.z, centre, na.x) : 0.0;
-        float of = depth_valid(fa.x) && patch_can_shadow(ssm_receiver(fa, texelFetch(u_far_b, texel, 0)),
-                                                         p.data.xy, p.data.z)
-                 ? patch_occlusion(p.data.xy, p.data.z, centre, fa.x) : 0.0;
+        float on = record_occlusion(p, texel, texelFetch(u_near_a, texel, 0), u_near_b, u_near_c);
+        float of = record_occlusion(p, texel, texelFetch(u_far_a, texel, 0), u_far_b, u_far_c);
         if (on > 0.0) imageAtomicAdd(u_sum_near, texel, uint(on * FIXED_POINT + 0.5));
         if (of > 0.0) imageAtomicAdd(u_sum_far, texel, uint(of * FIXED_POINT + 0.5));
         if (++texel.x == hi.x) texel = ivec2(lo.x, texel.y + 1);

@@ -5,12 +5,24 @@
 #include "ssm/patch.glsl"
 uniform sampler2D u_near_a;     // ssm/receivers.comp's records of the nearest and the farthest receiver
 uniform sampler2D u_near_b;
+uniform sampler2D u_near_c;
 uniform sampler2D u_far_a;
 uniform sampler2D u_far_b;
+uniform sampler2D u_far_c;
 flat in vec4 v_lohi;        // patch window rectangle: lo.xy, hi.xy
 flat in vec3 v_depth;       // zo, 1/zo, object of the patch
 flat in vec2 v_patch;       // its occluder texel
 layout(location = 0) out vec2 f_occlusion;
+
+// The share of the light this patch hides from the receiver of one record (a, b, c) of this texel, whose
+// window centre is t.
+float record_occlusion(ivec2 texel, vec4 a, sampler2D b_map, sampler2D c_map, vec2 t, vec2 inv_2h, float tw1) {
+    Receiver r = ssm_receiver(a, texelFetch(b_map, texel, 0), texelFetch(c_map, texel, 0).r);
+    if (!patch_can_shadow(r, v_patch, v_depth.x)) return 0.0;
+    float zr = a.x;
+    receiver_eye(r, t, zr);
+    return patch_occlusion_fast(v_lohi - t.xyxy, v_depth.x, v_depth.y, zr, inv_2h, tw1, t);
+}
 
 void main() {
     ivec2 texel = ivec2(gl_FragCoord.xy);
@@ -19,14 +31,10 @@ void main() {
     if (!depth_valid(na.x)) discard;    // no receiver the camera sees in this texel
     vec4 fa = texelFetch(u_far_a, texel, 0);
     vec2 t = map_window(gl_FragCoord.xy);
-    vec4 d = v_lohi - t.xyxy;
     vec2 tt = map_texel_window();
     float tw1 = max(tt.x, tt.y);
     vec2 inv_2h = 0.5 / max(u_half, vec2(1e-9));    // metres (tan for a sun): a zero-size light still divides
-    float on = patch_can_shadow(ssm_receiver(na, texelFetch(u_near_b, texel, 0)), v_patch, v_depth.x)
-             ? patch_occlusion_fast(d, v_depth.x, v_depth.y, na.x, inv_2h, tw1, t) : 0.0;
-    float of = fa == na ? on
-             : patch_can_shadow(ssm_receiver(fa, texelFetch(u_far_b, texel, 0)), v_patch, v_depth.x)
-             ? patch_occlusion_fast(d, v_depth.x, v_depth.y, fa.x, inv_2h, tw1, t) : 0.0;
+    float on = record_occlusion(texel, na, u_near_b, u_near_c, t, inv_2h, tw1);
+    float of = fa == na ? on : record_occlusion(texel, fa, u_far_b, u_far_c, t, inv_2h, tw1);
     f_occlusion = vec2(on, of);
 }
