@@ -289,16 +289,33 @@ def _tangent_window(local: np.ndarray, near_floor: float):
     t = local[front, :2] / depth[front, None]
     win = list(_bounds(t))
     if not front.all():
-        # The box straddles the light plane: directions towards its far side are unbounded.
-        behind = local[~front, :2]
+        # The box straddles the light plane: its points just in front of the plane, where it cuts the box, have
+        # unbounded tangents on the side of the eye they lie. The cut is not where the corners behind lie: a
+        # 47 m floor crossing a REFERENCE sample's plane cuts it at y < 0 while every corner behind has y > 0,
+        # and a window bounded below left most receivers off the map, lit (fuzz 8423).
+        cut = _plane_cut(local, depth, front, near_floor)
         for axis in (0, 1):
-            if (behind[:, axis] < 0).any() or not front.any():
+            if (cut[:, axis] < 0).any():
                 win[2 * axis] = -np.inf
-            if (behind[:, axis] > 0).any():
+            if (cut[:, axis] > 0).any():
                 win[2 * axis + 1] = np.inf
-            if np.allclose(behind[:, axis], 0.0):
+            if np.allclose(cut[:, axis], 0.0):
                 win[2 * axis], win[2 * axis + 1] = -np.inf, np.inf
     return tuple(win), depth[front]
+
+
+def _plane_cut(local: np.ndarray, depth: np.ndarray, front: np.ndarray, plane: float) -> np.ndarray:
+    """(k, 2) points where the segments from the points in front of depth `plane` to those behind it cross
+    it: the convex hull's cut by that plane lies within theirs. Many points (a face's receivers) are replaced
+    by their bounding box's corners, whose hull holds theirs."""
+    if np.count_nonzero(front) * np.count_nonzero(~front) > 4096:
+        local = box_corners(local.min(axis=0), local.max(axis=0))
+        depth = -local[:, 2]
+        front = depth > plane
+    a, b = local[front], local[~front]
+    da, db = depth[front][:, None], depth[~front][None, :]
+    s = ((da - plane) / np.maximum(da - db, 1e-30))[..., None]          # (front, behind, 1)
+    return (a[:, None, :2] + s * (b[None, :, :2] - a[:, None, :2])).reshape(-1, 2)
 
 
 def _widen(win, grow) -> tuple:
