@@ -91,6 +91,16 @@ def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
+def cell_corners(points: np.ndarray, cells: int = 24) -> np.ndarray:
+    """The corners of the cells of a cells³ grid over the points' box that hold a point: at most (cells + 1)³
+    points whose hull holds the points' hull, to fit many views to many receivers (REFERENCE's samples)."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    size = np.maximum(hi - lo, 1e-12) / cells
+    occupied = np.unique(np.minimum(((points - lo) / size).astype(np.int64), cells - 1), axis=0)
+    corners = (occupied[:, None, :] + box_corners(np.zeros(3), np.ones(3))[None].astype(np.int64)).reshape(-1, 3)
+    return lo + np.unique(corners, axis=0) * size
+
+
 def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[np.ndarray, np.ndarray] | None,
         map_size: int, *, origin_local: np.ndarray | None = None, margin: float = 0.02,
         frame: np.ndarray | None = None, face: np.ndarray | None = None,
@@ -293,7 +303,7 @@ def _tangent_window(local: np.ndarray, near_floor: float):
         # unbounded tangents on the side of the eye they lie. The cut is not where the corners behind lie: a
         # 47 m floor crossing a REFERENCE sample's plane cuts it at y < 0 while every corner behind has y > 0,
         # and a window bounded below left most receivers off the map, lit (fuzz 8423).
-        cut = _plane_cut(local, depth, front, near_floor)
+        cut = _plane_cut(local, front, near_floor)
         for axis in (0, 1):
             if (cut[:, axis] < 0).any():
                 win[2 * axis] = -np.inf
@@ -304,16 +314,15 @@ def _tangent_window(local: np.ndarray, near_floor: float):
     return tuple(win), depth[front]
 
 
-def _plane_cut(local: np.ndarray, depth: np.ndarray, front: np.ndarray, plane: float) -> np.ndarray:
+def _plane_cut(local: np.ndarray, front: np.ndarray, plane: float) -> np.ndarray:
     """(k, 2) points where the segments from the points in front of depth `plane` to those behind it cross
-    it: the convex hull's cut by that plane lies within theirs. Many points (a face's receivers) are replaced
-    by their bounding box's corners, whose hull holds theirs."""
-    if np.count_nonzero(front) * np.count_nonzero(~front) > 4096:
-        local = box_corners(local.min(axis=0), local.max(axis=0))
-        depth = -local[:, 2]
-        front = depth > plane
+    it: the convex hull's cut by that plane lies within theirs. Many points (a view's receivers) are replaced
+    by the corners of two boxes (eye space), one round those in front and one round those behind, which stay
+    on their sides and whose hull holds theirs."""
     a, b = local[front], local[~front]
-    da, db = depth[front][:, None], depth[~front][None, :]
+    if len(a) * len(b) > 4096:
+        a, b = (box_corners(q.min(axis=0), q.max(axis=0)) for q in (a, b))
+    da, db = -a[:, 2][:, None], -b[:, 2][None, :]
     s = ((da - plane) / np.maximum(da - db, 1e-30))[..., None]          # (front, behind, 1)
     return (a[:, None, :2] + s * (b[None, :, :2] - a[:, None, :2])).reshape(-1, 2)
 

@@ -146,13 +146,18 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                     lifted = _lifted_points(gbuffer_array("g_normal")[lit], gbuffer_array("g_geometric")[lit],
                                             lit_xyz)
                     lit_xyz = np.concatenate([lit_xyz, lifted], axis=1)
+                    # The lit points bound the window tighter than their box, whose corners can straddle the
+                    # light's plane where no lit point does (fuzz 8217: a tilted light over a large floor)
+                    view = lightview.fit(light, receivers, casters, settings.shadow_map_size,
+                                         receiver_points=lit_xyz.reshape(-1, 3).astype(np.float64))
                     faces = lightview.split_faces(view, lit_xyz[:, :3], lit_xyz[:, 3:])
                 elif rim:
                     faces = lightview.sun_rim_faces(light, view, gbuffer_array("g_geometric")[lit][:, :3],
                                                     gbuffer_array("g_normal")[lit][:, :3])
             if faces is None:
                 rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
-                                       stats, debug)
+                                       stats, debug, points=None if lit_xyz is None
+                                       else lit_xyz.reshape(-1, 3).astype(np.float64))
             else:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, faces, lit, lit_xyz,
                                        irradiance, object_bounds, caster_objects, visibility, stats, debug)
@@ -193,12 +198,13 @@ def _lit_bounds(frame: Frame, irradiance, buffer):
 
 
 def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
-                     debug: dict, split: bool = False):
+                     debug: dict, split: bool = False, points=None):
     """One light view: build the structures the technique declares, then its visibility into `out`. Returns
-    the technique's coloured visibility texture, if it made one."""
+    the technique's coloured visibility texture, if it made one. `points`: the view's lit points (and their
+    lifted points), where they were read back."""
     t = frame.timings
     lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms},
-                      frame.receiver_sides, split=split)
+                      frame.receiver_sides, split=split, receiver_points=points)
     memory = stats.setdefault("structure_bytes", {})    # per structure: the largest light view's
     for need in structures.plan(technique.needs_for(frame.settings)):    # what the technique declares, once
         with t.stage("shadow_map"):
@@ -245,12 +251,12 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
     owner_tex.write(owner.tobytes())
     for index, (rotation, mask) in enumerate(faces):
         rgb, casters = None, None
+        pts = lit_xyz[mask].astype(np.float64).reshape(-1, 3)
         if rotation is None:                    # the light's single view keeps the pixels it holds
             receivers, casters, face_view = view_receivers, view_casters, view
         else:
             # the face holds its receivers and the points their shadow rays leave from (lifted off smooth
             # triangles), so a lifted point is looked up in a map instead of falling off it
-            pts = lit_xyz[mask].astype(np.float64).reshape(-1, 3)
             receivers = (pts.min(axis=0), pts.max(axis=0))
             if light.casts_shadow and frame.geometry.has_casters:
                 casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers,
@@ -267,7 +273,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         if casters is not None:
             view_debug: dict = {}
             rgb = _view_visibility(frame, technique, light, face_view, irradiance, receivers, casters, face_out,
-                                   stats, view_debug, split=True)
+                                   stats, view_debug, split=True, points=pts)
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))
