@@ -91,6 +91,16 @@ def box_corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
 
 
+def cell_corners(points: np.ndarray, cells: int = 24) -> np.ndarray:
+    """The corners of the cells of a cells³ grid over the points' box that hold a point: at most (cells + 1)³
+    points whose hull holds the points' hull, to fit many views to many receivers (REFERENCE's samples)."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    size = np.maximum(hi - lo, 1e-12) / cells
+    occupied = np.unique(np.minimum(((points - lo) / size).astype(np.int64), cells - 1), axis=0)
+    corners = (occupied[:, None, :] + box_corners(np.zeros(3), np.ones(3))[None].astype(np.int64)).reshape(-1, 3)
+    return lo + np.unique(corners, axis=0) * size
+
+
 def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[np.ndarray, np.ndarray] | None,
         map_size: int, *, origin_local: np.ndarray | None = None, margin: float = 0.02,
         frame: np.ndarray | None = None, face: np.ndarray | None = None,
@@ -481,16 +491,32 @@ def _tangent_window(local: np.ndarray, near_floor: float):
     t = local[front, :2] / depth[front, None]
     win = list(_bounds(t))
     if not front.all():
-        # The box straddles the light plane: directions towards its far side are unbounded.
-        behind = local[~front, :2]
+        # The box straddles the light plane: its points just in front of the plane, where it cuts the box, have
+        # unbounded tangents on the side of the eye they lie. The cut is not where the corners behind lie: a
+        # 47 m floor crossing a REFERENCE sample's plane cuts it at y < 0 while every corner behind has y > 0,
+        # and a window bounded below left most receivers off the map, lit (fuzz 8423).
+        cut = _plane_cut(local, front, near_floor)
         for axis in (0, 1):
-            if (behind[:, axis] < 0).any() or not front.any():
+            if (cut[:, axis] < 0).any():
                 win[2 * axis] = -np.inf
-            if (behind[:, axis] > 0).any():
+            if (cut[:, axis] > 0).any():
                 win[2 * axis + 1] = np.inf
-            if np.allclose(behind[:, axis], 0.0):
+            if np.allclose(cut[:, axis], 0.0):
                 win[2 * axis], win[2 * axis + 1] = -np.inf, np.inf
     return tuple(win), depth[front]
+
+
+def _plane_cut(local: np.ndarray, front: np.ndarray, plane: float) -> np.ndarray:
+    """(k, 2) points where the segments from the points in front of depth `plane` to those behind it cross
+    it: the convex hull's cut by that plane lies within theirs. Many points (a view's receivers) are replaced
+    by the corners of two boxes (eye space), one round those in front and one round those behind, which stay
+    on their sides and whose hull holds theirs."""
+    a, b = local[front], local[~front]
+    if len(a) * len(b) > 4096:
+        a, b = (box_corners(q.min(axis=0), q.max(axis=0)) for q in (a, b))
+    da, db = -a[:, 2][:, None], -b[:, 2][None, :]
+    s = ((da - plane) / np.maximum(da - db, 1e-30))[..., None]          # (front, behind, 1)
+    return (a[:, None, :2] + s * (b[None, :, :2] - a[:, None, :2])).reshape(-1, 2)
 
 
 def _widen(win, grow) -> tuple:

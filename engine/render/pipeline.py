@@ -139,17 +139,25 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         else:
             with t.stage("light_view"):
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
-                parts = None
+                parts = lit_xyz = lifted = None
                 # Only a clamped view can leave lit pixels outside, and only pixels with the light's centre
                 # below their horizon need rim views: read the lit pixels back then.
                 if view.clamped or hidden:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
-                    lifted, parts = _view_parts(light, view, lit_xyz, gbuffer_array("g_normal")[lit],
-                                                gbuffer_array("g_geometric")[lit], rim=hidden > 0)
+                    normal, geometric = gbuffer_array("g_normal")[lit], gbuffer_array("g_geometric")[lit]
+                    lifted = _lifted_points(normal, geometric, lit_xyz) \
+                        if view.clamped or (hidden and light.kind != SUN) else None
+                    if view.clamped:
+                        # The lit points bound the window tighter than their box, whose corners can straddle
+                        # the light's plane where no lit point does (fuzz 8217: a tilted light over a floor)
+                        view = lightview.fit(light, receivers, casters, settings.shadow_map_size,
+                                             receiver_points=_with_lifted(lit_xyz, lifted))
+                    parts = _view_parts(light, view, lit_xyz, lifted, normal, geometric, rim=hidden > 0)
             if parts is None:
+                points = None if lit_xyz is None else _with_lifted(lit_xyz, lifted)
                 rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
-                                       stats, debug)
+                                       stats, debug, points=points)
             else:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, parts, lit, lit_xyz,
                                        lifted, irradiance, object_bounds, caster_objects, visibility, stats, debug)
@@ -195,12 +203,13 @@ def _lit_bounds(frame: Frame, irradiance, buffer, centre=None):
 
 
 def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
-                     debug: dict, split: bool = False):
+                     debug: dict, split: bool = False, points=None):
     """One light view: build the structures the technique declares, then its visibility into `out`. Returns
-    the technique's coloured visibility texture, if it made one."""
+    the technique's coloured visibility texture, if it made one. `points`: the view's lit points (and their
+    lifted points), where they were read back."""
     t = frame.timings
     lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms},
-                      frame.receiver_sides, split=split)
+                      frame.receiver_sides, split=split, receiver_points=points)
     memory = stats.setdefault("structure_bytes", {})    # per structure: the largest light view's
     for need in structures.plan(technique.needs_for(frame.settings)):    # what the technique declares, once
         with t.stage("shadow_map"):
@@ -240,13 +249,17 @@ class ViewPart:
     rotation: np.ndarray | None = None
 
 
-def _view_parts(light, view, xyz, normal, geometric, rim: bool):
-    """The views a light's lit pixels (xyz, N × 3, with their g_normal and g_geometric texels) are split over,
-    as ViewParts, and where their shadow rays leave from (N × 3; None where no view needs it). None for the
-    parts when the single view holds them all. Rim views first take the pixels whose horizon hides the light's
-    centre; a clamped view's pixels outside it go to the cube faces (lightview.split_faces)."""
+def _with_lifted(xyz: np.ndarray, lifted: np.ndarray | None) -> np.ndarray:
+    """Lit points (N × 3) and, where known, where their shadow rays leave from: the points a view must hold."""
+    return (xyz if lifted is None else np.concatenate([xyz, lifted])).astype(np.float64)
+
+
+def _view_parts(light, view, xyz, lifted, normal, geometric, rim: bool):
+    """The views a light's lit pixels (xyz, N × 3, where their shadow rays leave from, and their g_normal and
+    g_geometric texels) are split over, as ViewParts; None when the single view holds them all. Rim views
+    first take the pixels whose horizon hides the light's centre; a clamped view's pixels outside it go to
+    the cube faces (lightview.split_faces)."""
     local_rim = rim and light.kind != SUN
-    lifted = _lifted_points(normal, geometric, xyz) if view.clamped or local_rim else None
     parts = []
     if rim and light.kind == SUN:
         for rotation, mask in lightview.sun_rim_faces(light, view, geometric[:, :3], normal[:, :3]) or []:
@@ -259,7 +272,7 @@ def _view_parts(light, view, xyz, normal, geometric, rim: bool):
     rest = ~np.any([p.mask for p in parts], axis=0) if parts else np.ones(len(xyz), bool)
     parts += _face_parts(view, xyz, lifted, rest)
     single = len(parts) == 1 and parts[0].light is None and parts[0].rotation is None
-    return lifted, (None if single or not parts else parts)
+    return None if single or not parts else parts
 
 
 def _face_parts(view, xyz, lifted, where, light=None) -> list:
@@ -305,13 +318,12 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         part = queue[index]
         part_light = part.light or light
         rgb, casters = None, None
+        pts = _with_lifted(lit_xyz[part.mask], None if lifted is None else lifted[part.mask])
         if part.light is None and part.rotation is None:    # the light's single view keeps the pixels it holds
             receivers, casters, face_view = view_receivers, view_casters, view
         else:
             # the view holds its receivers and the points their shadow rays leave from (lifted off smooth
             # triangles), so a lifted point is looked up in a map instead of falling off it
-            pts = lit_xyz[part.mask] if lifted is None else np.concatenate([lit_xyz[part.mask], lifted[part.mask]])
-            pts = pts.astype(np.float64)
             receivers = (pts.min(axis=0), pts.max(axis=0))
             if part_light.casts_shadow and frame.geometry.has_casters:
                 casters = lightview.shadowing_caster_bounds(part_light, object_bounds, caster_objects, receivers,
@@ -337,7 +349,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         if casters is not None:
             view_debug: dict = {}
             rgb = _view_visibility(frame, technique, part_light, face_view, irradiance, receivers, casters,
-                                   face_out, stats, view_debug, split=True)
+                                   face_out, stats, view_debug, split=True, points=pts)
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))

@@ -396,6 +396,10 @@ class AveragedMaps(Technique):
         light's axes and is refitted from the sample point (a sun's turned towards its sample direction)."""
         s, light = frame.settings, lc.light
         samples = []
+        # The lit points, where known, bound each sample's window tighter than their box, whose corners can
+        # straddle a sample's plane where no lit point does (lightview.fit); their grid cells' corners, so
+        # that N fits do not each project every pixel.
+        points = None if lc.receiver_points is None else lightview.cell_corners(lc.receiver_points)
         for i, offset in enumerate(offsets):
             if i % 64 == 0:
                 frame.progress.check()      # thousands of views take a while to fit: stay cancellable
@@ -408,7 +412,7 @@ class AveragedMaps(Technique):
                 local = np.array([offset[0], offset[1], offset[2] if len(offset) > 2 else 0.0])
                 # A cube face keeps its turn: every sample's map looks the way the face looks.
                 view = lightview.fit(light, lc.receivers, lc.casters, s.shadow_map_size, origin_local=local,
-                                     frame=lc.view.frame, face=lc.view.face)
+                                     frame=lc.view.frame, face=lc.view.face, receiver_points=points)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
             samples.append((view, sample_world, emit, 1.0 if relative is None else float(relative[i])))
         return samples

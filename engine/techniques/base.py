@@ -31,6 +31,9 @@ class LightContext:
     receiver_sides: object = None
     # The light is seen through several views (its single view and cube faces): its receivers surround it.
     split: bool = False
+    # The lit points (and their lifted points, world, N × 3) this view holds, where the pipeline read them back
+    # (a clamped single view, a cube face); None where only the `receivers` box is known.
+    receiver_points: Any = None
     structures: dict = field(default_factory=dict)
     # A coloured visibility (RGBA32F texture, rgb per channel) for a textured light: Combined then uses it
     # channel by channel, while `out` keeps the scalar (luminance-weighted) visibility.
