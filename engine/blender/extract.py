@@ -8,7 +8,8 @@ every instance of it is transformed in one batched numpy step.
 Behaviour that mirrors Cycles (intern/cycles/blender/light.cpp, scene/light.cpp):
   * point/spot radius is `shadow_soft_size` as-is: Cycles does not scale it by the object transform;
   * area-light extents are `size * |local axis|` (object scale applies), spot cones keep the object scale
-    in `spot_scale`;
+    in `spot_scale` (and, for skewed axes, the whole object map in `spot_linear`); a point light's scale and
+    a sun's (but a zero Z) change nothing;
   * light colour is `color * temperature_color` when `use_temperature` is on (Blender's own blackbody
     value, read from RNA), power is `energy * 2**exposure`;
   * a light with "Normalize" off is folded into `power` by multiplying with its emitting area, which is
