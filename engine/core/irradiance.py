@@ -162,8 +162,9 @@ def _disk_facing(centre: np.ndarray, radius: np.ndarray, axis: np.ndarray,
 def spot_attenuation(light: Light, directions: np.ndarray) -> np.ndarray:
     """Cycles' spot cone factor for unit `directions` (N,3) from the light towards the receiver.
 
-    Cycles (kernel/light/spot.h): the direction is taken to the light's local frame and divided by the
-    object scale per axis, then renormalised: w = normalize(d·X/sx, d·Y/sy, d·(-Z)/sz);
+    Cycles (kernel/light/spot.h): the direction goes through the inverse object transform and is
+    renormalised (Light.spot_to_local), which for perpendicular axes is the light's local frame divided by
+    the object scale per axis: w = normalize(d·X/sx, d·Y/sy, d·(-Z)/sz);
     att = smoothstep((w.z − cos(spot_size/2)) / ((1 − cos(spot_size/2))·spot_blend)), with
     smoothstep(t) = 3t² − 2t³ on [0,1] (clamped). No cosine factor. blend 0 → hard edge.
     """
