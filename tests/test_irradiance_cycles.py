@@ -344,6 +344,39 @@ def test_skewed_spot():
     assert rel_gpu.mean() < 0.02
 
 
+@pytest.mark.parametrize("scale", [(1.0, 1.0, 1.0), (-1.0, 1.0, 1.0), (1.0, -1.0, 1.0)], ids=["plain", "x-", "y-"])
+def test_textured_area_light_image_side(scale):
+    """A 2 m square light 0.3 m over the ground, its image red on the upper half (+v) and green below: Cycles
+    lays it along the object's own X and Y axes, a mirrored one included (red over world -Y when Y is
+    mirrored, over +Y when X is). Light.texture, over the light frame's [-1, 1]², must put red on the same
+    side (a mirrored matrix's right-handed frame has its Y against the object's: before, red came out on the
+    wrong side for both mirrors)."""
+    scene, cam, planes, lob = _build_scene("AREA", dict(shape="SQUARE", size=2.0, energy=200.0),
+                                           dict(location=(0.0, 0.0, 0.3), scale=scale), 32)
+    data = lob.data
+    data.use_nodes = True
+    image = bpy.data.images.new("halves", 2, 2)
+    px = np.zeros((2, 2, 4), np.float32)
+    px[..., 3] = 1.0
+    px[1, :, 0] = 1.0                   # the upper row: red
+    px[0, :, 1] = 1.0                   # the lower row: green
+    image.pixels.foreach_set(px.ravel())
+    tex = data.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image, tex.interpolation = image, "Closest"
+    emission = next(n for n in data.node_tree.nodes if n.type == "EMISSION")
+    data.node_tree.links.new(tex.outputs["Color"], emission.inputs["Color"])
+    img = _render_combined(scene)
+    pos, nrm, ids = _pixel_geometry(cam, planes, W, H)
+    ground = (ids.reshape(H, W) == 0) & (np.abs(pos[:, 0].reshape(H, W)) < 0.5)
+    redness = img[..., 0] - img[..., 1]
+    cycles_red_at_plus_y = redness[ground & (pos[:, 1].reshape(H, W) > 0.2)].mean()
+    assert abs(cycles_red_at_plus_y) > 1.0
+    light = _light_from_object(lob)
+    row = -1 if light.matrix[1, 1] > 0 else 0           # the texture row over world +Y
+    ours_red_at_plus_y = light.texture[row, 0, 0] - light.texture[row, 0, 1]
+    assert np.sign(ours_red_at_plus_y) == np.sign(cycles_red_at_plus_y), (cycles_red_at_plus_y, light.texture)
+
+
 def test_skewed_area_light_warns():
     """An area light with skewed axes: Cycles samples its skewed extents as a rectangle with perpendicular
     sides (kernel/light/area.h), which no parallelogram model reproduces (measured here: Cycles 2.6× the

@@ -546,6 +546,10 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
                  "from it, and neither does Penumbra")
             out.power = 0.0
         out.texture = light_texture(light, warn)
+        if out.texture is not None and np.linalg.det(np.asarray(matrix, np.float64)[:3, :3]) < 0.0:
+            # Cycles' image follows the object's own Y axis (kernel/light/area.h: v = dot(P, axis_v)), which a
+            # mirrored matrix points against the right-handed frame's Y: its rows run the other way there.
+            out.texture = out.texture[::-1].copy()
         if out.texture is not None:
             mean = out.texture.reshape(-1, 3).mean(axis=0)
             out.color = out.color * mean
