@@ -392,6 +392,17 @@ def test_skewed_area_light_warns():
     assert not any("skewed" in w for w in warnings[1]), warnings[1]
 
 
+def test_spot_with_coplanar_axes_warns():
+    """A spot under a rotated parent flattened to zero on one axis: no axis of its own is zero, but all three
+    lie in one plane, so the object map has no inverse; extraction names it in a warning instead of failing."""
+    scene, cam, planes, lob = _build_scene("SPOT", dict(shadow_soft_size=0.05, energy=150.0,
+                                                        spot_size=math.radians(100)),
+                                           dict(rotation=(0.3, 0.4, 0.7), parent_scale=(1.6, 0.6, 0.0)))
+    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+    assert any("spot light 'light' has its three axes in one plane" in w for w in snap.warnings), snap.warnings
+    assert snap.lights[0].spot_linear is None
+
+
 def test_spot_zero_z_scale_reach():
     """A spot with a zero Z scale lights only where Cycles' light tree still resolves its radius in float32
     (irradiance.cycles_radius_share): all of it within ~2800 radii, none beyond ~5800, a falling share

@@ -576,8 +576,14 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
             if not out.spot_axisless and out.power > 0.0 and sheared_axes(matrix):
                 # Cycles' cone is the image of a round cone under the object map, skewed axes included
                 # (Light.spot_to_local): kept exactly as that map in the light's frame.
-                out.spot_linear = out.matrix[:3, :3].T @ np.asarray(matrix, np.float64)[:3, :3]
-                _skewed_spot_reach(name, out, scale, warn)
+                linear = out.matrix[:3, :3].T @ np.asarray(matrix, np.float64)[:3, :3]
+                if abs(np.linalg.det(linear)) <= 1e-9 * float(np.prod(scale)):
+                    warn(f"spot light '{name}' has its three axes in one plane (a flattened, rotated parent): "
+                         "Cycles' cone through that singular matrix is not modelled, Penumbra uses the cone of "
+                         "its axes' lengths")
+                else:
+                    out.spot_linear = linear
+                    _skewed_spot_reach(name, out, scale, warn)
     elif kind == SUN:
         out.angle = float(light.angle)
         if scale[2] <= 0.0:
