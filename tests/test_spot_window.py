@@ -29,6 +29,32 @@ def test_a_spot_view_is_bounded_by_its_cone_not_its_receivers_box():
     assert lightview.fit(point, receivers, receivers, 1024, frame=lightview.light_frame(light)).clamped
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_a_skewed_spots_cone_stays_inside_its_bounds(seed):
+    """A spot with skewed axes (Light.spot_linear): every direction its cone lets light through has tangents
+    within spot_cone_tans along the frame's X and Y and within spot_tan_wide off -Z, which the view window,
+    the cone region and the irradiance footprint rely on; and the bounds are tight (the cone reaches 99 % of
+    them)."""
+    from penumbra.engine.core.irradiance import spot_attenuation, spot_tan_wide
+    rng = np.random.default_rng(seed)
+    linear = np.triu(rng.uniform(-0.8, 0.8, (3, 3)), 1).T + np.diag(rng.uniform(0.4, 2.0, 3))
+    linear[:, 2] = [0.0, 0.0, rng.uniform(0.4, 2.0)]        # the frame's Z is the object's Z axis
+    light = _spot(float(rng.uniform(20.0, 110.0)))
+    light.spot_blend = 0.3
+    light.spot_linear = linear
+    turn = light.matrix[:3, :3]
+    local = rng.normal(size=(200000, 3))
+    local[:, 2] = -np.abs(local[:, 2]) * rng.uniform(0.05, 3.0, len(local))
+    local /= np.linalg.norm(local, axis=1, keepdims=True)
+    lit = spot_attenuation(light, local @ turn.T) > 0.0
+    assert lit.sum() > 1000
+    t = local[lit, :2] / -local[lit, 2:3]
+    tx, ty = spot_cone_tans(light)
+    wide = spot_tan_wide(light)
+    assert np.abs(t[:, 0]).max() <= tx and np.abs(t[:, 1]).max() <= ty and np.hypot(*t.T).max() <= wide
+    assert np.abs(t[:, 0]).max() > 0.97 * tx and np.hypot(*t.T).max() > 0.97 * wide
+
+
 def test_a_spot_with_a_radius_keeps_what_its_emitter_reaches_past_the_cone():
     """From the light's centre, a receiver lit through the edge of a spot's disk lies up to radius/depth past
     the cone; inside the sphere there is no cone at all."""

@@ -8,7 +8,8 @@ every instance of it is transformed in one batched numpy step.
 Behaviour that mirrors Cycles (intern/cycles/blender/light.cpp, scene/light.cpp):
   * point/spot radius is `shadow_soft_size` as-is: Cycles does not scale it by the object transform;
   * area-light extents are `size * |local axis|` (object scale applies), spot cones keep the object scale
-    in `spot_scale`;
+    in `spot_scale` (and, for skewed axes, the whole object map in `spot_linear`); a point light's scale and
+    a sun's (but a zero Z) change nothing;
   * light colour is `color * temperature_color` when `use_temperature` is on (Blender's own blackbody
     value, read from RNA), power is `energy * 2**exposure`;
   * a light with "Normalize" off is folded into `power` by multiplying with its emitting area, which is
@@ -25,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.irradiance import spot_edge_tans
 from ..core.snapshot import (AREA, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, AlbedoTexture, Camera, Light, ObjectInfo,
                              SceneSnapshot)
 
@@ -504,6 +506,21 @@ def _mapping_matrix(node):
 # lights
 # ----------------------------------------------------------------------------------------------------------
 
+# Axes whose normalised dot product exceeds this count as not perpendicular (a sheared light transform).
+SHEAR_EPS = 1e-5
+
+
+def sheared_axes(matrix: np.ndarray) -> bool:
+    """Whether the nonzero axes of a 4×4 object matrix's linear part are not mutually perpendicular: the
+    world matrix of an object under a rotated, non-uniformly scaled parent. Zero axes are left to the
+    singular-scale rules."""
+    axes = np.asarray(matrix, np.float64)[:3, :3]
+    norms = np.linalg.norm(axes, axis=0)
+    unit = axes[:, norms > 0.0] / norms[norms > 0.0]
+    gram = unit.T @ unit
+    return bool(np.abs(gram - np.eye(len(gram))).max() > SHEAR_EPS)
+
+
 def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
     """Snapshot light from a bpy Light datablock and its instance world matrix (4x4 numpy). `warn(text)`
     receives anything the snapshot cannot represent exactly."""
@@ -529,10 +546,21 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
                  "from it, and neither does Penumbra")
             out.power = 0.0
         out.texture = light_texture(light, warn)
+        if out.texture is not None and np.linalg.det(np.asarray(matrix, np.float64)[:3, :3]) < 0.0:
+            # Cycles' image follows the object's own Y axis (kernel/light/area.h: v = dot(P, axis_v)), which a
+            # mirrored matrix points against the right-handed frame's Y: its rows run the other way there.
+            out.texture = out.texture[::-1].copy()
         if out.texture is not None:
             mean = out.texture.reshape(-1, 3).mean(axis=0)
             out.color = out.color * mean
             out.texture = (out.texture / np.maximum(mean, 1e-12)).astype(np.float32)
+        if out.power > 0.0 and sheared_axes(matrix):
+            # Cycles keeps the skewed axes and samples them as a rectangle with perpendicular sides
+            # (kernel/light/area.h, area_light_rect_sample), around an emission axis that may leave the
+            # light's plane: measured 2.6x Penumbra's light on the receivers of a 40° skew.
+            warn(f"area light '{name}' has skewed axes (its X, Y and Z are not perpendicular, from a rotated "
+                 "non-uniformly scaled parent): Cycles' light from it is not a true parallelogram, Penumbra "
+                 "renders a rectangle of the same side lengths")
         if float(getattr(light, "spread", math.pi)) < math.pi - 1e-6:
             warn(f"area light '{name}' has a spread below 180°: rendered with the full 180° spread")
     elif kind in (POINT, SPOT):
@@ -545,6 +573,17 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
             if getattr(light, "use_square", False):
                 warn(f"spot light '{name}' has a square cone: rendered with a round cone")
             _singular_spot(name, out, matrix, scale, warn)
+            if not out.spot_axisless and out.power > 0.0 and sheared_axes(matrix):
+                # Cycles' cone is the image of a round cone under the object map, skewed axes included
+                # (Light.spot_to_local): kept exactly as that map in the light's frame.
+                linear = out.matrix[:3, :3].T @ np.asarray(matrix, np.float64)[:3, :3]
+                if abs(np.linalg.det(linear)) <= 1e-9 * float(np.prod(scale)):
+                    warn(f"spot light '{name}' has its three axes in one plane (a flattened, rotated parent): "
+                         "Cycles' cone through that singular matrix is not modelled, Penumbra uses the cone of "
+                         "its axes' lengths")
+                else:
+                    out.spot_linear = linear
+                    _skewed_spot_reach(name, out, scale, warn)
     elif kind == SUN:
         out.angle = float(light.angle)
         if scale[2] <= 0.0:
@@ -563,6 +602,21 @@ def make_light(name: str, light, matrix: np.ndarray, warn) -> Light:
             area = 1.0
         out.power *= area
     return out
+
+
+def _skewed_spot_reach(name: str, out: Light, scale: np.ndarray, warn) -> None:
+    """Cycles' light tree bounds a spot's emission by the cone of half angle atan(tan(spot_size/2) ·
+    max(|X|, |Y|) / |Z|) around its Z axis (scene/light_tree.cpp), exact for perpendicular axes. A skewed
+    cone reaches past it, and there only BSDF rays that happen to hit the emitter light a receiver: sparse
+    fireflies that converge to the whole cone, which is what Penumbra renders (measured: tests/
+    test_irradiance_cycles.py, test_skewed_spot)."""
+    tree = math.degrees(math.atan(math.tan(min(out.spot_size / 2.0, math.pi / 2.0 - 1e-6))
+                                  * max(scale[0], scale[1]) / scale[2]))
+    cone = math.degrees(math.atan(spot_edge_tans(out)[2]))
+    if cone > tree + 0.5:
+        warn(f"spot light '{name}' has skewed axes (a rotated, non-uniformly scaled parent): its cone reaches "
+             f"{cone:.0f}° off its Z axis, Cycles' light tree only {tree:.0f}°; beyond that Cycles renders "
+             "sparse fireflies that converge to the light Penumbra renders")
 
 
 def _singular_spot(name: str, out: Light, matrix: np.ndarray, scale: np.ndarray, warn) -> None:

@@ -162,17 +162,14 @@ def _disk_facing(centre: np.ndarray, radius: np.ndarray, axis: np.ndarray,
 def spot_attenuation(light: Light, directions: np.ndarray) -> np.ndarray:
     """Cycles' spot cone factor for unit `directions` (N,3) from the light towards the receiver.
 
-    Cycles (kernel/light/spot.h): the direction is taken to the light's local frame and divided by the
-    object scale per axis, then renormalised: w = normalize(d·X/sx, d·Y/sy, d·(-Z)/sz);
+    Cycles (kernel/light/spot.h): the direction goes through the inverse object transform and is
+    renormalised (Light.spot_to_local), which for perpendicular axes is the light's local frame divided by
+    the object scale per axis: w = normalize(d·X/sx, d·Y/sy, d·(-Z)/sz);
     att = smoothstep((w.z − cos(spot_size/2)) / ((1 − cos(spot_size/2))·spot_blend)), with
     smoothstep(t) = 3t² − 2t³ on [0,1] (clamped). No cosine factor. blend 0 → hard edge.
     """
-    m = light.matrix
-    s = np.maximum(np.abs(np.asarray(light.spot_scale, np.float64)), _EPS)
-    local = np.stack([directions @ m[:3, 0] / s[0],
-                      directions @ m[:3, 1] / s[1],
-                      -(directions @ m[:3, 2]) / s[2]], axis=-1)
-    wz = _normalize(local)[:, 2]
+    local = directions @ light.spot_to_local().T        # the inverse object map (Light.spot_to_local)
+    wz = -_normalize(local)[:, 2]
     cos_half = np.cos(0.5 * light.spot_size)
     width = (1.0 - cos_half) * light.spot_blend
     if width > 0.0:
@@ -203,9 +200,34 @@ def _disk_cell_centres(centre, radius, axis, x, rings: int, sectors: int) -> np.
 
 def spot_tan_wide(light: Light) -> float:
     """tan of the spot cone's widest half angle in world space: the object scale stretches the cone by
-    scale_x/scale_z and scale_y/scale_z (as Cycles' "larger spread")."""
+    scale_x/scale_z and scale_y/scale_z (as Cycles' "larger spread"); a sheared spot's from its edge."""
+    if light.spot_linear is not None:
+        return spot_edge_tans(light)[2]
     s = np.maximum(np.abs(np.asarray(light.spot_scale, np.float64)), _EPS)
     return float(np.tan(0.5 * light.spot_size) * max(s[0], s[1]) / s[2])
+
+
+# Directions around a sheared spot's cone edge that spot_edge_tans takes its maxima over, and the margin that
+# keeps them above the true maxima (the sampled maximum of a smooth curve falls short by O(step²) ≈ 1e-5).
+SPOT_EDGE_STEPS, SPOT_EDGE_MARGIN = 720, 1.001
+
+
+def spot_edge_tans(light: Light) -> tuple[float, float, float]:
+    """For a spot with sheared axes (Light.spot_linear): the largest |tan| of its cone's outer edge along the
+    frame's X and Y, and off its -Z, in `matrix`'s frame (inf where the edge reaches the frame's X/Y plane).
+    The edge is the image under the object map of Cycles' round cone cos = cos(spot_size/2); as the image of
+    a convex cone around local -Z it is convex around the frame's -Z (the image of that axis), so these
+    bound it."""
+    half = min(0.5 * light.spot_size, 0.5 * np.pi)
+    phi = np.linspace(0.0, 2.0 * np.pi, SPOT_EDGE_STEPS, endpoint=False)
+    edge = np.stack([np.sin(half) * np.cos(phi), np.sin(half) * np.sin(phi), np.full_like(phi, -np.cos(half))])
+    v = np.asarray(light.spot_linear, np.float64) @ edge
+    depth = -v[2]
+    if np.any(depth <= 1e-9 * np.linalg.norm(v, axis=0)):
+        return np.inf, np.inf, np.inf
+    t = v[:2] / depth
+    return tuple(float(SPOT_EDGE_MARGIN * x) for x in (np.abs(t[0]).max(), np.abs(t[1]).max(),
+                                                       np.hypot(t[0], t[1]).max()))
 
 
 # Spot lights with a radius: the cone attenuation is evaluated per ray in Cycles, so it is integrated over

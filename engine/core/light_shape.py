@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from .irradiance import spot_edge_tans
 from .shading import SUN_MAX_HALF
 from .snapshot import AREA, DISK, ELLIPSE, SPOT, SUN, Light
 
@@ -30,6 +31,8 @@ def spot_cone_tans(light: Light) -> tuple[float, float]:
     by scale x (y) over scale z, as spot.glsl's u_spot_to_local does. Unbounded (inf) for other lights."""
     if light.kind != SPOT:
         return math.inf, math.inf
+    if light.spot_linear is not None:
+        return spot_edge_tans(light)[:2]
     s = np.maximum(np.abs(np.asarray(light.spot_scale, float)), 1e-12)
     t = np.tan(min(light.spot_size / 2.0, np.pi / 2.0 - 1e-6))
     return float(t * s[0] / s[2]), float(t * s[1] / s[2])

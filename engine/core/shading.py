@@ -77,7 +77,6 @@ def spot_uniforms(light: Light) -> dict:
     if light.kind != SPOT:
         return {"u_spot_to_local": tuple(np.eye(3).ravel()), "u_spot_cos_half": -1.0, "u_spot_smooth": 0.0}
     cos_half = float(np.cos(light.spot_size / 2.0))
-    scale = np.asarray(light.spot_scale, float)
-    to_local = np.diag(1.0 / np.maximum(np.abs(scale), 1e-12)) @ np.asarray(light.matrix, float)[:3, :3].T
+    to_local = light.spot_to_local()
     return {"u_spot_cos_half": cos_half, "u_spot_smooth": float((1.0 - cos_half) * light.spot_blend),
             "u_spot_to_local": tuple(to_local.T.ravel())}

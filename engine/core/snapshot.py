@@ -34,6 +34,10 @@ class Light:
     spot_size: float = np.pi        # SPOT: full cone angle in radians
     spot_blend: float = 0.0         # SPOT: 0..1
     spot_scale: np.ndarray = field(default_factory=lambda: np.ones(3))  # SPOT: object scale (shapes the cone)
+    # SPOT whose object axes are not perpendicular (a light under a rotated, non-uniformly scaled parent): the
+    # object's linear map in `matrix`'s frame (columns: its X, Y, Z axes there), which shapes the cone instead
+    # of `spot_scale` (spot_to_local). None: the axes are perpendicular, diag(spot_scale) says it all.
+    spot_linear: np.ndarray | None = None
     use_soft_falloff: bool = True   # POINT/SPOT: Cycles' soft falloff (emitter = disk facing the receiver)
     # SPOT with a zero Z scale: no emission axis, so Cycles' light tree gives it importance only where float32
     # still resolves its radius from the receiver (irradiance.cycles_radius_share).
@@ -60,6 +64,15 @@ class Light:
         if self.shape in (DISK, ELLIPSE):
             return float(np.pi / 4.0 * self.size_x * self.size_y)
         return float(self.size_x * self.size_y)
+
+    def spot_to_local(self) -> np.ndarray:
+        """3×3 map of a world direction leaving a spot into the space where Cycles' cone is round (its local
+        -Z the axis): the inverse of the object's linear map (kernel/light/spot.h takes each ray through the
+        inverse object transform). With perpendicular axes that is diag(1 / spot_scale) · matrixᵀ."""
+        turn = np.asarray(self.matrix, np.float64)[:3, :3].T
+        if self.spot_linear is not None:
+            return np.linalg.inv(np.asarray(self.spot_linear, np.float64)) @ turn
+        return np.diag(1.0 / np.maximum(np.abs(np.asarray(self.spot_scale, np.float64)), 1e-12)) @ turn
 
     @property
     def is_delta(self) -> bool:

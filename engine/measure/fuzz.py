@@ -383,9 +383,51 @@ def failure_class(params: dict, warnings: list[str]) -> str:
         classes.append("flattened caster")
     if any(p["type"] == "SUN" and p["angle"] > 1.0 for p in params["lights"]):
         classes.append("wide sun")
-    if any(p["scale_kind"] in ("zero", "mirrored", "nonuniform") for p in params["lights"]):
+    if any(_scale_shapes_light(p) for p in params["lights"]):
         classes.append("scaled light")
+    if params["floor"] and any(_below_floor(params["floor"], p, params["camera"]) for p in params["lights"]):
+        classes.append("light below the floor")
+    if any(_sphere_holds_objects(p, params["objects"]) for p in params["lights"]):
+        classes.append("light sphere holds receivers")
     return ", ".join(classes) or "other"
+
+
+def _sphere_holds_objects(light: dict, objects: list) -> bool:
+    """A point or spot light whose radius reaches an object's centre: receivers inside its sphere, where
+    Cycles' soft falloff turns its disk towards each receiver (README known limits; fuzz 8445: a 2.7 m
+    spot inside the room it lights, 20 % more unshadowed light in Cycles with the object scale at 1 too)."""
+    if light["type"] not in ("POINT", "SPOT"):
+        return False
+    here = np.asarray(light["location"], float)
+    return any(np.linalg.norm(np.asarray(o["location"], float) - here) < light["radius"] for o in objects)
+
+
+def _below_floor(floor: dict, light: dict, camera: dict) -> bool:
+    """A point or spot light whose centre lies on the far side of the (tilted) floor's plane from the camera,
+    its sphere reaching above it: the receivers the camera sees on the floor have the light's centre below
+    their tangent plane and see only a cap of it (fuzz 8461: a 0.59 m sphere 0.57 m under the floor)."""
+    if light["type"] not in ("POINT", "SPOT") or light["radius"] <= 0.0:
+        return False
+    rx, ry, _ = floor["rotation"]           # Euler XYZ, no Z turn: the plane's normal
+    normal = np.array([math.cos(rx) * math.sin(ry), -math.sin(rx), math.cos(rx) * math.cos(ry)])
+    origin = np.array([0.0, 0.0, floor["z"]])
+    light_side = float(normal @ (np.asarray(light["location"]) - origin))
+    camera_side = float(normal @ (np.asarray(camera["location"]) - origin))
+    return light_side * camera_side < 0.0 and abs(light_side) < light["radius"]
+
+
+def _scale_shapes_light(light: dict) -> bool:
+    """Whether a light's object scale changes what Cycles renders beyond turning it: never for a point light
+    (kernel/light/point.h reads only its position and radius) nor a sun unless its Z axis is zero (no
+    direction); an area light's extents and a spot's cone follow unequal or zero scale axes. A mirrored axis
+    alone only turns the light (fuzz 8461, "scaled light" before this: the same Cycles image with the scale
+    at 1)."""
+    scale = np.abs(np.asarray(light["scale"], float))
+    if light["type"] == "POINT":
+        return False
+    if light["type"] == "SUN":
+        return bool(scale[2] == 0.0)
+    return bool(scale.min() == 0.0 or scale.max() > scale.min() * (1.0 + 1e-9))
 
 
 @dataclass
