@@ -380,15 +380,22 @@ float k_of(Pixel p, float z) {
     return u_light_ortho == 1 ? 1.0 / (p.d - z) : z * p.d / (p.d - z);
 }
 
+// The receiver plane's nearest depth (receiver_depth_at) over the map rectangle [p0, p1]: at one corner, found
+// from the normal instead of evaluating all four. Along map rays the plane's depth is z = c / (n.xy·w − n.z)
+// (perspective, c = n·x < 0 with the origin above) or (n.xy·w − c) / n.z (ortho, n.z > 0): either way it grows
+// with the window coordinate w where n.xy is positive, and its clamps (the receiver's depth, rays that miss
+// the plane) keep it monotone; w grows with the map position. Below the plane it is one constant.
+float receiver_depth_min(Pixel p, vec2 p0, vec2 p1) {
+    return receiver_depth_at(p.r, mix(p1, p0, vec2(greaterThan(p.r.normal.xy, vec2(0.0)))));
+}
+
 // A coarse cell (level > 0) holds the minimum depth of its 2^l × 2^l texels; the receiver's own plane
 // inside it reaches as near as its nearest corner (1/z is linear over the window), so compare there, or a
 // tilted receiver shadows itself from coarse levels (the acne §4 warns about).
 bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
     if (!(z < EMPTY_DEPTH) || !(z < p.d * (1.0 - SELF_GAP))) return false;
     if (l == 0) return z < receiver_depth_at(p.r, 0.5 * (p0 + p1));
-    float m = min(min(receiver_depth_at(p.r, p0), receiver_depth_at(p.r, p1)),
-                  min(receiver_depth_at(p.r, vec2(p0.x, p1.y)), receiver_depth_at(p.r, vec2(p1.x, p0.y))));
-    return z < m;
+    return z < receiver_depth_min(p, p0, p1);
 }
 
 #if REFIT != REFIT_NONE
@@ -475,9 +482,7 @@ vec4 cov_fetch(int layer, int l, ivec2 c) {
 bool cover(Pixel p, int layer, int l, ivec2 c, inout vec2 p0, inout vec2 p1) {
     vec4 s = cov_fetch(layer, l, c);       // mean, count, max, variance
     if (s.g <= 0.0) return false;
-    float d = min(min(receiver_depth_at(p.r, p0), receiver_depth_at(p.r, p1)),
-                  min(receiver_depth_at(p.r, vec2(p0.x, p1.y)), receiver_depth_at(p.r, vec2(p1.x, p0.y))));
-    d = min(d, p.d * (1.0 - SELF_GAP));
+    float d = min(receiver_depth_min(p, p0, p1), p.d * (1.0 - SELF_GAP));
     float near = 1.0;
     if (s.b >= d) {
         float gap = s.b - s.r;
