@@ -35,7 +35,7 @@ layout(rgba32f, binding = 1) uniform writeonly image2D u_dst_extent;
 layout(r32f, binding = 2) uniform readonly image2D u_src_depth;
 layout(rgba32f, binding = 3) uniform readonly image2D u_src_extent;
 #endif
-const vec4 NO_STATS = vec4(0.0, 0.0, -NO_OCCLUDER, 0.0);
+#include "backprojection/depth_stats.glsl"
 
 bool inside(ivec2 t) {
     return all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_src_size));
@@ -77,12 +77,7 @@ void add(inout Rect r, ivec2 t) {
     r.z = min(r.z, z);
     if (empty(z)) return;
 #if STATS
-    vec4 q = imageLoad(u_src_stats, t);
-    // Counts, means and variances merged as in coverage.comp (variances about the common mean).
-    float n = r.stats.g + q.g, mean = (r.stats.r * r.stats.g + q.r * q.g) / max(n, 1.0);
-    float m2 = r.stats.g * (r.stats.a + (r.stats.r - mean) * (r.stats.r - mean))
-             + q.g * (q.a + (q.r - mean) * (q.r - mean));
-    r.stats = vec4(mean, n, max(r.stats.b, q.b), m2 / max(n, 1.0));
+    r.stats = merge_stats(r.stats, imageLoad(u_src_stats, t));
 #endif
     vec4 e = imageLoad(u_src_extent, t);
     r.ext = r.any ? vec4(min(r.ext.xy, e.xy), max(r.ext.zw, e.zw)) : e;
@@ -127,8 +122,7 @@ void main() {
         imageStore(u_dst_depth, c, vec4(in_map ? texelFetch(u_depth, c, 0).r : NO_OCCLUDER));
         imageStore(u_dst_extent, c, vec4(vec2(c), vec2(c + 1)));
 #if STATS
-        float z = in_map ? texelFetch(u_depth, c, 0).r : NO_OCCLUDER;
-        imageStore(u_dst_stats, c, empty(z) ? NO_STATS : vec4(z, 1.0, z, 0.0));
+        imageStore(u_dst_stats, c, in_map ? texel_stats(texelFetch(u_depth, c, 0).r) : NO_STATS);
 #endif
         return;
     }
