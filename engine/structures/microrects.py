@@ -41,7 +41,8 @@ class Microrects:
 
 def build_chain(frame, depth, width: int, height: int, stats: bool = False):
     """Microrect depth and extent chains of one R32F depth map (and, with `stats`, the chain of the members'
-    mean depth, texel count, maximum depth and depth variance: BACKPROJECTION's coarse coverage). Returns (depth,
+    mean depth, texel count, maximum depth and depth variance: BACKPROJECTION's coarse coverage; level 0 left
+    unwritten, the texels' own depths). Returns (depth,
     extent, stats or None, levels, padded size)."""
     pw, ph = padded_size(width, height)
     levels = level_count(pw, ph)
@@ -54,7 +55,8 @@ def build_chain(frame, depth, width: int, height: int, stats: bool = False):
     depth.use(location=0)
     set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
     mip_chain(frame, prog, textures, (pw, ph), levels,
-              lambda l_: {"u_src_size": (max(pw >> max(l_ - 1, 0), 1), max(ph >> max(l_ - 1, 0), 1))})
+              lambda l_: {"u_src_size": (max(pw >> max(l_ - 1, 0), 1), max(ph >> max(l_ - 1, 0), 1)),
+                          "u_src_level": max(l_ - 1, 0)})
     return textures[0], textures[1], textures[2] if stats else None, levels, (pw, ph)
 
 

@@ -21,6 +21,7 @@ uniform sampler2D u_depth;      // level 0 source (R32F)
 uniform int u_first;            // 1: build level 0
 uniform ivec2 u_map_size;
 uniform ivec2 u_src_size;       // level i (padded) size
+uniform int u_src_level;        // i
 uniform ivec2 u_dst_size;
 #if STATS
 layout(r32f, binding = 0) uniform writeonly image2D u_dst_depth;
@@ -77,7 +78,8 @@ void add(inout Rect r, ivec2 t) {
     r.z = min(r.z, z);
     if (empty(z)) return;
 #if STATS
-    r.stats = merge_stats(r.stats, imageLoad(u_src_stats, t));
+    // Level 0's statistics are the texel's own depth (never stored: the gather reads them at coarse levels).
+    r.stats = merge_stats(r.stats, u_src_level == 0 ? texel_stats(z) : imageLoad(u_src_stats, t));
 #endif
     vec4 e = imageLoad(u_src_extent, t);
     r.ext = r.any ? vec4(min(r.ext.xy, e.xy), max(r.ext.zw, e.zw)) : e;
@@ -121,9 +123,6 @@ void main() {
         bool in_map = all(lessThan(c, u_map_size));
         imageStore(u_dst_depth, c, vec4(in_map ? texelFetch(u_depth, c, 0).r : NO_OCCLUDER));
         imageStore(u_dst_extent, c, vec4(vec2(c), vec2(c + 1)));
-#if STATS
-        imageStore(u_dst_stats, c, in_map ? texel_stats(texelFetch(u_depth, c, 0).r) : NO_STATS);
-#endif
         return;
     }
     ivec2 a = 2 * c;
