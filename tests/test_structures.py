@@ -53,7 +53,7 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     snap = floating_plane(32)
     # Micropatches read the hierarchy itself (the default microrects add their own structure, checked below).
     base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64).with_(bp_primitive="MICROPATCH")
-    r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=3))
+    r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=3, bp_coverage=False))
     assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1}
     memory = r.stats["structure_bytes"]
     depth = memory["depth_map"]
@@ -61,7 +61,7 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     assert memory["peeled_layers"] == 2 * depth       # two layers behind the depth map, same texel format
     assert memory["hsm"] > 3 * 2 * depth               # an RG32F pyramid (≥ 4/3 of a level) per layer
     calls.clear()
-    r = pipeline.render(snap, base.with_(bp_refinement="MSSM"))
+    r = pipeline.render(snap, base.with_(bp_refinement="MSSM", bp_coverage=False))
     assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "mssm": 1}
     memory = r.stats["structure_bytes"]
     assert memory["hsm"] == 0                          # layer 0 reads the MSSM, which holds every level
@@ -71,7 +71,19 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "ysm": 1, "microrects": 1}
     memory = r.stats["structure_bytes"]
     assert memory["hsm"] == 8 * (64 * 64 * 4 - 1) // 3     # layer 1's pyramid only: the YSM holds layer 0's
-    assert memory["microrects"] == 2 * (4 + 16) * (64 * 64 * 4 - 1) // 3        # two layers, R32F + RGBA32F chains
+    assert memory["microrects"] == 2 * (4 + 16 + 16) * (64 * 64 * 4 - 1) // 3   # two layers, R32F + RGBA32F chains
+    # …plus (bp_coverage, the default) the RGBA32F member statistics; without it the two chains alone.
+    calls.clear()
+    r = pipeline.render(snap, base.with_(bp_refinement="YSM", bp_primitive="MICRORECT", bp_coverage=False))
+    assert r.stats["structure_bytes"]["microrects"] == (4 + 16) * (64 * 64 * 4 - 1) // 3
+    # Micropatches with coverage read one RGBA32F coverage pyramid per layer; microquads need none.
+    calls.clear()
+    r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=2))
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "coverage": 1}
+    assert r.stats["structure_bytes"]["coverage"] == 2 * 16 * (64 * 64 * 4 - 1) // 3
+    calls.clear()
+    pipeline.render(snap, base.with_(bp_refinement="HSM", bp_primitive="MICROQUAD"))
+    assert "coverage" not in calls
 
 
 def test_ssm_structures_follow_its_options(monkeypatch):

@@ -34,13 +34,13 @@ def chain_bytes(width: int, height: int, texel_bytes: int) -> int:
     return sum(max(pw >> l_, 1) * max(ph >> l_, 1) * texel_bytes for l_ in range(level_count(pw, ph)))
 
 
-def reduce_pyramid(frame, shader: str, depth, size, uniforms: dict):
-    """An RG32F min/max pyramid over the padded `size` (full mip chain, nearest filtering), its level 0
-    filled from the R32F `depth` map by the compute `shader` and the rest by mip_chain. Returns (texture,
-    levels)."""
+def reduce_pyramid(frame, shader: str, depth, size, uniforms: dict, components: int = 2):
+    """A pyramid over the padded `size` (full mip chain, nearest filtering; RG32F min/max unless `components`
+    says otherwise), its level 0 filled from the R32F `depth` map by the compute `shader` and the rest by
+    mip_chain. Returns (texture, levels)."""
     pw, ph = size
     levels = level_count(pw, ph)
-    tex = frame.texture((pw, ph), 2)
+    tex = frame.texture((pw, ph), components)
     tex.build_mipmaps(0, levels - 1)
     tex.filter = (0x2600, 0x2600)       # GL_NEAREST
     prog = program(frame.worker, compute=shader)

@@ -23,11 +23,12 @@ class Microrects:
     extent: list                # per depth layer: RGBA32F mipmapped texture
     levels: int
     padded: tuple
+    stats: list = ()            # with stats: per depth layer, RGBA32F mipmapped member statistics
 
     @property
     def nbytes(self) -> int:
         w, h = self.padded
-        return len(self.depth) * chain_bytes(w, h, 4 + 16)
+        return len(self.depth) * chain_bytes(w, h, 4 + 16) + len(self.stats) * chain_bytes(w, h, 16)
 
     def read(self, layer: int, level: int) -> tuple[np.ndarray, np.ndarray]:
         """(depth (H, W), extent (H, W, 4)) of one level, on the GPU thread (tests, studies)."""
@@ -38,29 +39,36 @@ class Microrects:
         return depth.copy(), extent.copy()
 
 
-def build_chain(frame, depth, width: int, height: int):
-    """Microrect depth and extent chains of one R32F depth map."""
+def build_chain(frame, depth, width: int, height: int, stats: bool = False):
+    """Microrect depth and extent chains of one R32F depth map (and, with `stats`, the chain of the members'
+    mean depth, texel count, maximum depth and depth variance: BACKPROJECTION's coarse coverage; level 0 left
+    unwritten, the texels' own depths). Returns (depth,
+    extent, stats or None, levels, padded size)."""
     pw, ph = padded_size(width, height)
     levels = level_count(pw, ph)
-    dtex, etex = frame.texture((pw, ph), 1), frame.texture((pw, ph), 4)
-    for tex in (dtex, etex):
+    textures = [frame.texture((pw, ph), 1), frame.texture((pw, ph), 4)] + ([frame.texture((pw, ph), 4)] if stats
+                                                                           else [])
+    for tex in textures:
         tex.build_mipmaps(0, levels - 1)
         tex.filter = (0x2600, 0x2600)       # GL_NEAREST
-    prog = program(frame.worker, compute="backprojection/microrects.comp")
+    prog = program(frame.worker, compute="backprojection/microrects.comp", defines={"STATS": int(stats)})
     depth.use(location=0)
     set_uniforms(prog, {"u_depth": 0, "u_map_size": (width, height)})
-    mip_chain(frame, prog, [dtex, etex], (pw, ph), levels,
-              lambda l_: {"u_src_size": (max(pw >> max(l_ - 1, 0), 1), max(ph >> max(l_ - 1, 0), 1))})
-    return dtex, etex, levels, (pw, ph)
+    mip_chain(frame, prog, textures, (pw, ph), levels,
+              lambda l_: {"u_src_size": (max(pw >> max(l_ - 1, 0), 1), max(ph >> max(l_ - 1, 0), 1)),
+                          "u_src_level": max(l_ - 1, 0)})
+    return textures[0], textures[1], textures[2] if stats else None, levels, (pw, ph)
 
 
 @structure(MICRORECTS, requires=(PEELED_LAYERS,))
-def build(frame, lc):
+def build(frame, lc, stats: bool = False):
     w, h = lc.view.width, lc.view.height
-    depths, extents, levels, padded = [], [], 1, padded_size(w, h)
+    depths, extents, members, levels, padded = [], [], [], 1, padded_size(w, h)
     with frame.timings.stage("bp_microrects"):
         for depth in lc.structures[PEELED_LAYERS].maps:
-            d, e, levels, padded = build_chain(frame, depth, w, h)
+            d, e, m, levels, padded = build_chain(frame, depth, w, h, stats)
             depths.append(d)
             extents.append(e)
-    return Microrects(depths, extents, levels, padded)
+            if m is not None:
+                members.append(m)
+    return Microrects(depths, extents, levels, padded, members)

@@ -15,7 +15,9 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
 * by default (bp_coarse_fit, ours; NONE is the papers') a coarse micropatch/microrect refitted per receiver
   to its finer-level parts that occlude it: their bounding box, at their minimum or mean depth, instead of the
   whole cell at the minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces
-  the light grazes);
+  the light grazes); and (bp_coverage, ours) shrunk to the share of its texels nearer than the receiver, from
+  the count, mean, maximum and variance of their depths (structures/coverage.py, the microrects' members), so
+  that bars finer than a coarse cell with gaps between them do not fuse into an umbra;
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
 * round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
@@ -42,6 +44,7 @@ from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UN
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from ..gpu import loops
 from ..structures import need
+from ..structures.coverage import COVERAGE
 from ..structures.hsm import HSM
 from ..structures.microrects import MICRORECTS
 from ..structures.mssm import MSSM, level_count
@@ -188,7 +191,7 @@ class Backprojection(Technique):
                    "peeling. Area lights of every shape, point/spot radius as a disk, sun as a disk of "
                    "directions; textured lights through per-sample colours")
     rim_views = True
-    needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM, YSM, MICRORECTS)  # all it may use; needs_for picks
+    needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM, YSM, MICRORECTS, COVERAGE)  # all it may use; needs_for picks
     options = (
         Option("bp_primitive", "MICRORECT", "Micro-occluders", "How depth-map texels become occluders",
                items=PRIMITIVES),
@@ -221,6 +224,9 @@ class Backprojection(Technique):
                       ("MEAN", "Extent and mean depth", "Shrunk to the occluding finer cells, at their mean "
                        "depth"),
                       ("DEPTH", "Mean depth", "Its own extent, at the mean depth of its occluding finer cells"))),
+        Option("bp_coverage", True, "Coarse coverage", "Coarse micro-occluders (micropatches, microrects) "
+               "shrunk to the share of their texels nearer than the receiver, from their depth statistics: "
+               "occluders finer than a cell (grids, fences) stop fusing into an umbra (not in the papers)"),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
         Option("bp_filter_passes", 0, "Filter passes",
@@ -252,8 +258,9 @@ class Backprojection(Technique):
            {"bp_refinement": "YSM"},
            {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}]
         # Ours: coarse micro-occluders refitted to their occluding finer parts (MEAN, the default), and the
-        # papers' whole cell at its minimum depth.
-        + [{"bp_coarse_fit": "NONE"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"}])
+        # papers' whole cell at its minimum depth; the coverage shrink off.
+        + [{"bp_coarse_fit": "NONE"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"},
+           {"bp_coverage": False}])
 
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
@@ -266,7 +273,15 @@ class Backprojection(Technique):
         hsm = need(HSM, mssm_first=mssm, ysm_first=True) if ysm else need(HSM, mssm_first=mssm)
         return (DEPTH_MAP, need(PEELED_LAYERS, layers=int(o["bp_layers"])), hsm,
                 *((MSSM,) if mssm else ()), *((YSM,) if ysm else ()),
-                *((MICRORECTS,) if o["bp_primitive"] == "MICRORECT" else ()))
+                *((need(MICRORECTS, stats=True) if self._coverage(o) else MICRORECTS,)
+                  if o["bp_primitive"] == "MICRORECT" else ()),
+                *((COVERAGE,) if self._coverage(o) and o["bp_primitive"] == "MICROPATCH" else ()))
+
+    @staticmethod
+    def _coverage(o) -> bool:
+        """Coarse micropatches read the coverage pyramid, microrects their member statistics (microquads
+        neither)."""
+        return bool(o["bp_coverage"]) and o["bp_primitive"] != "MICROQUAD"
 
     def visibility(self, frame, lc, out):
         s, light, view = frame.settings, lc.light, lc.view
@@ -300,6 +315,11 @@ class Backprojection(Technique):
             rects = lc.structures[MICRORECTS]
             for i, (d, e) in enumerate(zip(rects.depth, rects.extent)):
                 samplers[f"u_mr_depth{i}"], samplers[f"u_mr_extent{i}"] = d, e
+        if self._coverage(o):
+            chains = (lc.structures[MICRORECTS].stats if primitive == PRIMITIVE_MICRORECT
+                      else lc.structures[COVERAGE].pyramids)
+            for i, chain in enumerate(chains):
+                samplers[f"u_cov{i}"] = chain
         budget_mode = BUDGET_MODE[o["bp_budget_map"]]
         if budget_mode == BUDGET_IMPORTANCE:
             samplers.update(self._importance_maps(frame, o["bp_budget_image"]))
@@ -340,7 +360,8 @@ class Backprojection(Technique):
                    "WEIGHTED": int(weighted),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
                    "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER,
-                   "REFIT": REFIT_NONE if primitive == PRIMITIVE_MICROQUAD else REFIT[o["bp_coarse_fit"]]}
+                   "REFIT": REFIT_NONE if primitive == PRIMITIVE_MICROQUAD else REFIT[o["bp_coarse_fit"]],
+                   "COVERAGE": int(self._coverage(o))}
         frame.progress.check()
         if blend:
             with frame.timings.stage("bp_loq"):

@@ -11,16 +11,32 @@
 // Both passes are pure functions of level i, so one invocation evaluates its neighbours' pass-1 decisions
 // itself. Depth: minimum of the members; extent: the smallest rectangle holding the members' extents, where
 // empty members (no occluder) never widen it. Every level-i microrect joins exactly one level-(i + 1) one.
+// STATS (BACKPROJECTION's coverage, ours): a third chain holds, per microrect, its non-empty members' mean
+// depth, count of level-0 texels, maximum depth and depth variance, merged with the members.
+#ifndef STATS
+#define STATS 0
+#endif
 layout(local_size_x = 8, local_size_y = 8) in;
 uniform sampler2D u_depth;      // level 0 source (R32F)
 uniform int u_first;            // 1: build level 0
 uniform ivec2 u_map_size;
 uniform ivec2 u_src_size;       // level i (padded) size
+uniform int u_src_level;        // i
 uniform ivec2 u_dst_size;
+#if STATS
+layout(r32f, binding = 0) uniform writeonly image2D u_dst_depth;
+layout(rgba32f, binding = 1) uniform writeonly image2D u_dst_extent;
+layout(rgba32f, binding = 2) uniform writeonly image2D u_dst_stats;
+layout(r32f, binding = 3) uniform readonly image2D u_src_depth;
+layout(rgba32f, binding = 4) uniform readonly image2D u_src_extent;
+layout(rgba32f, binding = 5) uniform readonly image2D u_src_stats;
+#else
 layout(r32f, binding = 0) uniform writeonly image2D u_dst_depth;
 layout(rgba32f, binding = 1) uniform writeonly image2D u_dst_extent;
 layout(r32f, binding = 2) uniform readonly image2D u_src_depth;
 layout(rgba32f, binding = 3) uniform readonly image2D u_src_extent;
+#endif
+#include "backprojection/depth_stats.glsl"
 
 bool inside(ivec2 t) {
     return all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, u_src_size));
@@ -53,6 +69,7 @@ struct Rect {
     float z;
     vec4 ext;                   // x0, y0, x1, y1 (exclusive)
     bool any;                   // ext holds at least one occluder
+    vec4 stats;                 // STATS: mean depth, count, max, variance of the non-empty members' texels
 };
 
 void add(inout Rect r, ivec2 t) {
@@ -60,6 +77,10 @@ void add(inout Rect r, ivec2 t) {
     float z = z_of(t);
     r.z = min(r.z, z);
     if (empty(z)) return;
+#if STATS
+    // Level 0's statistics are the texel's own depth (never stored: the gather reads them at coarse levels).
+    r.stats = merge_stats(r.stats, u_src_level == 0 ? texel_stats(z) : imageLoad(u_src_stats, t));
+#endif
     vec4 e = imageLoad(u_src_extent, t);
     r.ext = r.any ? vec4(min(r.ext.xy, e.xy), max(r.ext.zw, e.zw)) : e;
     r.any = true;
@@ -80,7 +101,7 @@ bool contains(Rect r, ivec2 t) {
 // forced level 3 on a tilted-plates scene the ground's mean bias went −0.089 → −0.047, micropatches
 // −0.097). `took_e` says whether E joined.
 Rect pass1(ivec2 a, out bool took_e) {
-    Rect r = Rect(NO_OCCLUDER, vec4(0.0), false);
+    Rect r = Rect(NO_OCCLUDER, vec4(0.0), false, NO_STATS);
     add(r, a);
     ivec2 b = a + ivec2(1, 0), d = a + ivec2(0, 1), e = a + ivec2(1, 1);
     if (inside(b) && joins_back(b, ivec2(1, 0))) add(r, b);
@@ -117,5 +138,8 @@ void main() {
         if (!diag_taken) add(r, xy);
     }
     imageStore(u_dst_depth, c, vec4(r.z));
+#if STATS
+    imageStore(u_dst_stats, c, r.stats);
+#endif
     imageStore(u_dst_extent, c, r.any ? r.ext : imageLoad(u_src_extent, a));     // empty: A's own extent
 }

@@ -58,6 +58,9 @@
 #ifndef REFIT
 #define REFIT REFIT_NONE       // REFIT_EXTENT/MEAN/DEPTH: coarse micro-occluders refitted (see refit)
 #endif
+#ifndef COVERAGE
+#define COVERAGE 0              // 1: coarse micro-occluders shrunk to their occluding share (see cover)
+#endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
 #endif
@@ -100,6 +103,12 @@ uniform sampler2D u_mr_depth2;
 uniform sampler2D u_mr_extent2;
 uniform sampler2D u_mr_depth3;
 uniform sampler2D u_mr_extent3;
+#endif
+#if COVERAGE
+uniform sampler2D u_cov0;       // per layer: mean, count, max, variance of the non-empty texels per cell
+uniform sampler2D u_cov1;       // (structures/coverage.py) or microrect (its member statistics)
+uniform sampler2D u_cov2;
+uniform sampler2D u_cov3;
 #endif
 #if LOQ == LOQ_BLEND
 uniform sampler2D u_loq;        // smoothed LOQ map: r = ℓ (negative: no backprojection)
@@ -371,15 +380,22 @@ float k_of(Pixel p, float z) {
     return u_light_ortho == 1 ? 1.0 / (p.d - z) : z * p.d / (p.d - z);
 }
 
+// The receiver plane's nearest depth (receiver_depth_at) over the map rectangle [p0, p1]: at one corner, found
+// from the normal instead of evaluating all four. Along map rays the plane's depth is z = c / (n.xy·w − n.z)
+// (perspective, c = n·x < 0 with the origin above) or (n.xy·w − c) / n.z (ortho, n.z > 0): either way it grows
+// with the window coordinate w where n.xy is positive, and its clamps (the receiver's depth, rays that miss
+// the plane) keep it monotone; w grows with the map position. Below the plane it is one constant.
+float receiver_depth_min(Pixel p, vec2 p0, vec2 p1) {
+    return receiver_depth_at(p.r, mix(p1, p0, vec2(greaterThan(p.r.normal.xy, vec2(0.0)))));
+}
+
 // A coarse cell (level > 0) holds the minimum depth of its 2^l × 2^l texels; the receiver's own plane
 // inside it reaches as near as its nearest corner (1/z is linear over the window), so compare there, or a
 // tilted receiver shadows itself from coarse levels (the acne §4 warns about).
 bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
     if (!(z < EMPTY_DEPTH) || !(z < p.d * (1.0 - SELF_GAP))) return false;
     if (l == 0) return z < receiver_depth_at(p.r, 0.5 * (p0 + p1));
-    float m = min(min(receiver_depth_at(p.r, p0), receiver_depth_at(p.r, p1)),
-                  min(receiver_depth_at(p.r, vec2(p0.x, p1.y)), receiver_depth_at(p.r, vec2(p1.x, p0.y))));
-    return z < m;
+    return z < receiver_depth_min(p, p0, p1);
 }
 
 #if REFIT != REFIT_NONE
@@ -435,6 +451,55 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
 }
 #endif
 
+#if COVERAGE
+vec4 cov_fetch(int layer, int l, ivec2 c) {
+    if (cell_outside(l, c)) return vec4(0.0);
+    if (layer == 0) return texelFetch(u_cov0, c, l);
+#if LAYERS > 1
+    if (layer == 1) return texelFetch(u_cov1, c, l);
+#endif
+#if LAYERS > 2
+    if (layer == 2) return texelFetch(u_cov2, c, l);
+#endif
+#if LAYERS > 3
+    if (layer == 3) return texelFetch(u_cov3, c, l);
+#endif
+    return vec4(0.0);
+}
+
+// Coverage (ours): a coarse micro-occluder stands for all the texels of its cell (micropatch) or of its
+// members (microrect), but only those nearer than the receiver occlude it: bars thinner than a cell (fences,
+// grids) or a cell astride the receiver's own surface would otherwise block the whole backprojected box. Its
+// statistics (structures/coverage.py for cells, the microrects' member chain) give the non-empty texels'
+// count n, max M, mean μ and variance σ². All occlude when M is nearer than the receiver; else the texels
+// are read as two clusters, a far one at M (the receiver's own surface, the ground behind a fence) and a
+// near one, which matching μ and σ² puts at share (M − μ)² / (σ² + (M − μ)²) (exact for two depths; a near
+// cluster spread in depth comes out smaller, never above its true share). The box [p0, p1) (after the
+// refit) is shrunk about its centre to the area of the occluding texels (never grown): the same occluded
+// area of the light, spread as the texels are. Cells tile the map, so a cell's box always takes that area;
+// microrect extents overlap their neighbours' (n can be less than the extent of a solid surface), so a
+// microrect whose members all occlude keeps its box whole, as in the papers. False: nothing occludes.
+bool cover(Pixel p, int layer, int l, ivec2 c, inout vec2 p0, inout vec2 p1) {
+    vec4 s = cov_fetch(layer, l, c);       // mean, count, max, variance
+    if (s.g <= 0.0) return false;
+    float d = min(receiver_depth_min(p, p0, p1), p.d * (1.0 - SELF_GAP));
+    float near = 1.0;
+    if (s.b >= d) {
+        float gap = s.b - s.r;
+        near = gap * gap / max(s.a + gap * gap, 1e-30);      // (M − μ)² / E[(M − z)²]
+    }
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+    if (near >= 1.0) return true;
+#endif
+    vec2 size = p1 - p0;
+    float share = min(near * s.g / max(size.x * size.y, 1e-30), 1.0);
+    vec2 half_size = 0.5 * size * sqrt(share), mid = 0.5 * (p0 + p1);
+    p0 = mid - half_size;
+    p1 = mid + half_size;
+    return true;
+}
+#endif
+
 vec2 window_at(Pixel p, vec2 pos) {
     return u_light_window.xz + pos * p.tex;
 }
@@ -456,6 +521,9 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     if (!cell_occludes(p, z, p0, p1, l)) return false;
 #if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
+#endif
+#if COVERAGE
+    if (l > 0 && !cover(p, layer, l, c, p0, p1)) return false;
 #endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
@@ -486,6 +554,9 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     if (!cell_occludes(p, z, p0, p1, l)) return false;
 #if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
+#endif
+#if COVERAGE
+    if (l > 0 && !cover(p, layer, l, c, p0, p1)) return false;
 #endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
