@@ -247,6 +247,15 @@ def split_faces(view: LightView, points: np.ndarray,
         (face_rotation(CUBE_FACES[i]), index == i) for i in range(6) if (index == i).any()]
 
 
+def centre_hidden(geometric: np.ndarray, shading: np.ndarray, to_centre: np.ndarray) -> np.ndarray:
+    """Which receivers (geometric and shading normals, N × 3) have the light's centre (`to_centre`: the
+    direction towards it, 3 or N × 3, any length) at or below their horizon by both normals: light_view.glsl
+    then finds no texel that could shadow them, and they need rim views (sun_rim_faces, local_rim_lights)."""
+    d = np.broadcast_to(np.asarray(to_centre, float), np.shape(geometric))
+    reach = np.linalg.norm(d, axis=1)
+    return (np.einsum("ij,ij->i", geometric, d) <= 1e-6 * reach) & (np.einsum("ij,ij->i", shading, d) <= 0.0)
+
+
 # A sun's rim views: how many points around the edge of its disk stand for the disk where its centre is hidden.
 SUN_RIM_VIEWS = 8
 
@@ -265,7 +274,7 @@ def sun_rim_faces(light: Light, view: LightView, geometric: np.ndarray, shading:
         return None
     turn = np.asarray(view.view, float)[:3, :3]         # world → the sun's frame (+z towards the sun)
     ng, n = np.asarray(geometric, float) @ turn.T, np.asarray(shading, float) @ turn.T
-    hidden = (ng[:, 2] <= 1e-6) & (n[:, 2] <= 0.0)     # light_view.glsl: no texel could shadow them
+    hidden = centre_hidden(ng, n, np.array([0.0, 0.0, 1.0]))
     if not hidden.any():
         return None
     step = 2.0 * np.pi / SUN_RIM_VIEWS
@@ -360,10 +369,8 @@ def local_rim_lights(light: Light, points: np.ndarray, geometric: np.ndarray, sh
     if light.is_delta or light.kind == SUN or len(points) == 0:
         return None
     pts = np.asarray(points, float)
-    ng, n = np.asarray(geometric, float), np.asarray(shading, float)
-    to_centre = light.position - pts
-    reach = np.linalg.norm(to_centre, axis=1)
-    hidden = (np.einsum("ij,ij->i", ng, to_centre) <= 1e-6 * reach) & (np.einsum("ij,ij->i", n, to_centre) <= 0.0)
+    ng = np.asarray(geometric, float)
+    hidden = centre_hidden(ng, np.asarray(shading, float), light.position - pts)
     if not hidden.any():
         return None
     where = np.flatnonzero(hidden)
@@ -431,9 +438,9 @@ def _highest_stand_in(stand_ins: list, pts, ng):
     if not stand_ins or not len(pts):
         return np.zeros(len(pts), int), np.full(len(pts), -np.inf)
     centres = np.array([light_.position for light_ in stand_ins])
+    directions = np.array([light_.direction for light_ in stand_ins])
     height = ng @ centres.T - np.einsum("ij,ij->i", ng, pts)[:, None]
-    facing = pts @ np.array([light_.direction for light_ in stand_ins]).T > np.einsum(
-        "ij,ij->i", centres, np.array([light_.direction for light_ in stand_ins]))[None]
+    facing = pts @ directions.T > np.einsum("ij,ij->i", centres, directions)[None]     # in front of its plane
     height = np.where(facing, height, -np.inf)
     best = np.argmax(height, axis=1)
     return best, height[np.arange(len(pts)), best]

@@ -242,7 +242,8 @@ def _lifted_points(normal: np.ndarray, geometric: np.ndarray, xyz: np.ndarray) -
 class ViewPart:
     """Some of a light's lit pixels (`mask` over them) and the view they take: the light's single view (all
     else None), a rotation `rotation` of the view frame `frame` (a cube face, a sun's rim view), or the single
-    view of a stand-in `light` (a local light's rim point, lightview.local_rim_lights)."""
+    view of a stand-in `light` (for the part of a local light's emitter its pixels see,
+    lightview.local_rim_lights)."""
     mask: np.ndarray
     light: object = None
     frame: np.ndarray | None = None
@@ -271,8 +272,12 @@ def _view_parts(light, view, xyz, lifted, normal, geometric, rim: bool):
                 parts.append(ViewPart(mask, light=point))
     rest = ~np.any([p.mask for p in parts], axis=0) if parts else np.ones(len(xyz), bool)
     parts += _face_parts(view, xyz, lifted, rest)
-    single = len(parts) == 1 and parts[0].light is None and parts[0].rotation is None
-    return None if single or not parts else parts
+    return parts if _splits(parts) else None
+
+
+def _splits(parts: list, light=None) -> bool:
+    """Whether ViewParts ask for more than the single view of `light` (a stand-in; None: the light's own)."""
+    return len(parts) > 1 or (len(parts) == 1 and (parts[0].rotation is not None or parts[0].light is not light))
 
 
 def _face_parts(view, xyz, lifted, where, light=None) -> list:
@@ -295,8 +300,9 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                      lifted, irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
     """A light whose lit pixels do not fit one view (`parts`, ViewParts from _view_parts): its single view for
     the pixels it holds, one view per cube face for the rest (lightview.split_faces), a sun's rim views
-    (rotations of its frame, as faces are) and a local light's rim points (stand-in point lights with views of
-    their own, split into cube faces in turn where one view cannot hold their pixels), each fitted to the
+    (rotations of its frame, as faces are) and a local light's stand-ins (lightview.local_rim_lights: area
+    lights with views of their own, split into cube faces in turn where one view cannot hold their pixels), each
+    fitted to the
     receivers it owns, with its own structures; every pixel takes the visibility of the view that owns it, so
     none is left outside every map."""
     t = frame.timings
@@ -335,8 +341,8 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                     more = []
                     if face_view.clamped and part.light is not None and part.rotation is None:
                         more = _face_parts(face_view, lit_xyz, lifted, part.mask, light=part.light)
-                if len(more) > 1 or (more and more[0].rotation is not None):
-                    # a rim point's view too wide for one map: it keeps what it holds, its faces take the rest
+                if _splits(more, part.light):
+                    # a stand-in's view too wide for one map: it keeps what it holds, its faces take the rest
                     held = [p for p in more if p.rotation is None]
                     queue[index] = ViewPart(held[0].mask if held else np.zeros_like(part.mask), light=part.light)
                     queue += [p for p in more if p.rotation is not None]

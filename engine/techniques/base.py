@@ -61,7 +61,7 @@ class Technique:
     # Configurations the benchmark's --sweep traces (settings changes; RenderSettings fields or options).
     sweep: tuple[dict, ...] = MAP_SIZE_SWEEP
     # The technique works from the map of the light's centre, whose rays tell nothing about a receiver that has
-    # the centre below its horizon: the pipeline gives such receivers a view from a rim point of the emitter
+    # the centre below its horizon: the pipeline gives such receivers a view from the part of the emitter
     # they see instead (a sun's: core.lightview.sun_rim_faces; an area or sphere light's: local_rim_lights).
     rim_views = False
 
