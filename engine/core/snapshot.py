@@ -127,6 +127,11 @@ class AlbedoTexture:
     srgb: bool = False              # pixels are sRGB bytes, decoded after filtering (as Cycles does)
 
 
+# Convex objects up to this many triangles are told apart for caster culling (a UV sphere has 960, a level-3
+# icosphere 1280): the test costs the object's corners × its faces.
+CONVEX_CASTER_FACES = 2048
+
+
 @dataclass
 class SceneSnapshot:
     """Triangle soup plus lights and camera.
@@ -256,12 +261,19 @@ class SceneSnapshot:
             p, normal, area, _ = self._drawn_triangles(self.object_id == index)
             n = normal / area[:, None]
             d = np.einsum("fj,fj->f", n, p[:, 0])
-            height = p.reshape(-1, 3) @ n.T - d
+            height = np.unique(p.reshape(-1, 3), axis=0) @ n.T - d     # each corner once: shared ones are many
             if height.max() <= tol:             # every vertex behind every face
                 out[int(index)] = (n, d)
             elif height.min() >= -tol:          # faces wound inwards (a room seen from inside)
                 out[int(index)] = (-n, -d)
         return out
+
+    @cached_property
+    def convex_casters(self) -> dict:
+        """convex_objects of up to CONVEX_CASTER_FACES triangles, whatever they hold: where a light view's
+        receivers are known point by point, those that can shadow none of them are left out
+        (lightview.faces_clear_light). Once per snapshot, and only when asked for."""
+        return self.convex_objects(CONVEX_CASTER_FACES)
 
     def is_closed(self, index: int) -> bool:
         """Whether object `index`'s drawn triangles close up into a watertight surface: every edge shared by

@@ -140,6 +140,10 @@ class SceneGeometry:
         """Convex objects' face planes (SceneSnapshot.convex_objects); none known."""
         return {}
 
+    def convex_casters(self) -> dict:
+        """Convex objects' face planes, whatever they hold (SceneSnapshot.convex_casters); none known."""
+        return {}
+
     def render(self, ctx, prog, role: str, objects: frozenset | None = None, position_only: bool = False):
         """Draw `role` ("receiver" or "caster"), optionally only the given object indices, with `prog`."""
         fmt = "3f 24x" if position_only else VERTEX_FORMAT
@@ -231,6 +235,9 @@ class SoupGeometry(SceneGeometry):
             self._convex = (self._snap.convex_objects(around=lights, bounds=self.object_bounds())
                             if lights else {})
         return self._convex
+
+    def convex_casters(self):
+        return self._snap.convex_casters
 
     def release(self):
         self.vbo.release()

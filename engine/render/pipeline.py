@@ -332,8 +332,12 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
             # triangles), so a lifted point is looked up in a map instead of falling off it
             receivers = (pts.min(axis=0), pts.max(axis=0))
             if part_light.casts_shadow and frame.geometry.has_casters:
+                # a part's pixels are known one by one: a convex caster none of them sees the light past is
+                # left out (a ball's terminator band under a stand-in: often no view at all)
                 casters = lightview.shadowing_caster_bounds(part_light, object_bounds, caster_objects, receivers,
-                                                            frame.receiver_sides)
+                                                            frame.receiver_sides, points=lit_xyz[part.mask],
+                                                            lifted=None if lifted is None else lifted[part.mask],
+                                                            convex=frame.geometry.convex_casters())
             if casters is not None:
                 with t.stage("light_view"):
                     face_view = lightview.fit(part_light, receivers, casters, frame.settings.shadow_map_size,
