@@ -203,13 +203,13 @@ def _lit_bounds(frame: Frame, irradiance, buffer, centre=None):
 
 
 def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
-                     debug: dict, split: bool = False, points=None):
+                     debug: dict, split: bool = False, points=None, share: float = 1.0):
     """One light view: build the structures the technique declares, then its visibility into `out`. Returns
     the technique's coloured visibility texture, if it made one. `points`: the view's lit points (and their
-    lifted points), where they were read back."""
+    lifted points), where they were read back; `share`: the view's part of the light's lit pixels."""
     t = frame.timings
     lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms},
-                      frame.receiver_sides, split=split, receiver_points=points)
+                      frame.receiver_sides, split=split, receiver_points=points, share=share)
     memory = stats.setdefault("structure_bytes", {})    # per structure: the largest light view's
     for need in structures.plan(technique.needs_for(frame.settings)):    # what the technique declares, once
         with t.stage("shadow_map"):
@@ -359,7 +359,8 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
         if casters is not None:
             view_debug: dict = {}
             rgb = _view_visibility(frame, technique, part_light, face_view, irradiance, receivers, casters,
-                                   face_out, stats, view_debug, split=True, points=pts)
+                                   face_out, stats, view_debug, split=True, points=pts,
+                                   share=float(part.mask.sum()) / max(len(part.mask), 1))
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))

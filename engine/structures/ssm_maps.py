@@ -343,6 +343,7 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
         return SsmMaps(casters, receivers, half, skipped=True)
 
     bias = DEPTH_EPSILON
+    budget *= lc.share          # the light's budget, split over its views by the pixels each holds
     occluder_maps = ("front", "back") if two_pass else ("front",)
     for _attempt in range(4):
         view = ssm_view(lc.view, half, size)
@@ -354,8 +355,9 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
             break
         counted.give_back(frame)
         new = max(32, int(size * (budget / work) ** 0.25 * 0.95))
-        frame.warn(f"SSM: light '{light.name}': occluder map lowered from {size} to {new} texels to "
-                   f"keep the scatter within ssm_budget ({work / 1e6:.0f} M texel updates)")
+        if lc.share == 1.0:     # a view of part of the light's pixels is lowered by design: no warning
+            frame.warn(f"SSM: light '{light.name}': occluder map lowered from {size} to {new} texels to "
+                       f"keep the scatter within ssm_budget ({work / 1e6:.0f} M texel updates)")
         size = new
     with frame.timings.stage("ssm_maps"):
         patches = _write_patches(frame, counted)

@@ -34,6 +34,10 @@ class LightContext:
     # The lit points (and their lifted points, world, N × 3) this view holds, where the pipeline read them back
     # (a clamped single view, a cube face); None where only the `receivers` box is known.
     receiver_points: Any = None
+    # This view's part of the light's lit pixels (1 for a light seen through its single view): what a work
+    # budget meant for the light (SSM's ssm_budget) is split by, so that a light's stand-ins and cube faces
+    # together cost no more than one view would.
+    share: float = 1.0
     structures: dict = field(default_factory=dict)
     # A coloured visibility (RGBA32F texture, rgb per channel) for a textured light: Combined then uses it
     # channel by channel, while `out` keeps the scalar (luminance-weighted) visibility.
