@@ -142,6 +142,9 @@ class Frame:
         self._from_pool: list = []      # pooled objects this frame took: given back by release()
         self._per_light: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline
+        # (owner texture, index) while one of a light's several views is made: common/pixel.glsl's pixel_lit
+        # then takes only the pixels that view owns (render/pipeline.py _face_visibility)
+        self.view_owner: tuple | None = None
         self.bias_uniforms: dict = {}   # u_bias / u_normal_offset / u_terminator_offset, shared by every technique
         self.warnings: list[str] = list(snap.warnings)  # FrameResult.warnings
         self.stats: dict = {}           # counters techniques add (FrameResult.stats)
@@ -408,12 +411,14 @@ class Frame:
         The G-buffer is always bound under its own names."""
         prog = program(self.worker, compute=compute, defines=defines)
         w, h = size or (self.width, self.height)
-        bind_samplers(prog, {**self.gbuffer, **(samplers or {})})
+        owner = {} if self.view_owner is None else {"u_view_owner": self.view_owner[0]}
+        bind_samplers(prog, {**self.gbuffer, **owner, **(samplers or {})})
         for binding, tex in (images or {}).items():
             tex.bind_to_image(binding, read=True, write=True)
         for binding, buf in (buffers or {}).items():
             buf.bind_to_storage_buffer(binding)
-        set_uniforms(prog, {"u_image_size": (w, h), **(uniforms or {})})
+        index = -1.0 if self.view_owner is None else float(self.view_owner[1])
+        set_uniforms(prog, {"u_image_size": (w, h), "u_view_index": index, **(uniforms or {})})
         prog.run(*(groups or ((w + 7) // 8, (h + 7) // 8, 1)))
         self.ctx.memory_barrier()
 

@@ -358,9 +358,13 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                                "(please report this scene).")
         if casters is not None:
             view_debug: dict = {}
-            rgb = _view_visibility(frame, technique, part_light, face_view, irradiance, receivers, casters,
-                                   face_out, stats, view_debug, split=True, points=pts,
-                                   share=float(part.mask.sum()) / max(len(part.mask), 1))
+            frame.view_owner = (owner_tex, index)      # its structures and visibility for its own pixels only
+            try:
+                rgb = _view_visibility(frame, technique, part_light, face_view, irradiance, receivers, casters,
+                                       face_out, stats, view_debug, split=True, points=pts,
+                                       share=float(part.mask.sum()) / max(len(part.mask), 1))
+            finally:
+                frame.view_owner = None
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))
