@@ -288,6 +288,7 @@ class AveragedMaps(Technique):
     label = "Averaged shadow maps"
     description = "Average of N hard shadow maps from points on the light: slow ground truth"
     needs = ()
+    fits_sample_views = True
     # The identifier stays REFERENCE (stored in .blend files and scripts); its settings say what it does.
     options = (
         Option("averaged_light_samples", 64, "Light Samples", "Hard shadow maps averaged per light",
@@ -406,7 +407,7 @@ class AveragedMaps(Technique):
             emit = light.direction
             if light.kind == SUN:
                 tilted = tilted_sun(light, offset)
-                view = lightview.fit(tilted, lc.receivers, lc.casters, s.shadow_map_size)
+                view = lightview.fit(tilted, lc.receivers, lc.casters, s.shadow_map_size, receiver_points=points)
                 sample_world, emit = light.position, tilted.direction
             else:
                 local = np.array([offset[0], offset[1], offset[2] if len(offset) > 2 else 0.0])
