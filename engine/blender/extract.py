@@ -55,7 +55,9 @@ def orthonormal_frame(m: np.ndarray, primary: int = 2, secondary: int = 0) -> np
     eye = np.eye(3)
     a = _unit(m[:3, primary].copy(), eye[primary])
     b = m[:3, secondary] - np.dot(m[:3, secondary], a) * a
-    b = _unit(b, eye[secondary] - np.dot(eye[secondary], a) * a)
+    # A zero secondary axis falls back to the identity's, made perpendicular to `a` and unit length (left
+    # unnormalised, a sun with a zero X scale had X and Y axes of length 0.71 and its samples a narrower cone)
+    b = _unit(b, _unit(eye[secondary] - np.dot(eye[secondary], a) * a, np.zeros(3)))
     if np.linalg.norm(b) < 0.5:  # fallback axis parallel to `a`: take any perpendicular
         helper = eye[np.argmin(np.abs(a))]
         b = _unit(helper - np.dot(helper, a) * a, helper)

@@ -141,13 +141,15 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                 view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
                 parts = lit_xyz = lifted = None
                 # Only a clamped view can leave lit pixels outside, and only pixels with the light's centre
-                # below their horizon need rim views: read the lit pixels back then.
-                if view.clamped or hidden:
+                # below their horizon need rim views: read the lit pixels back then; and on smooth triangles
+                # for a technique whose sample views must hold the lifted shadow-ray starts.
+                samples_lift = technique.fits_sample_views and frame.geometry.has_smooth
+                if view.clamped or hidden or samples_lift:
                     lit = (frame.read(irradiance)[..., 3] > 0.0) & covered
                     lit_xyz = position[lit][:, :3]
                     normal, geometric = gbuffer_array("g_normal")[lit], gbuffer_array("g_geometric")[lit]
                     lifted = _lifted_points(normal, geometric, lit_xyz) \
-                        if view.clamped or (hidden and light.kind != SUN) else None
+                        if view.clamped or samples_lift or (hidden and light.kind != SUN) else None
                     if view.clamped:
                         # The lit points bound the window tighter than their box, whose corners can straddle
                         # the light's plane where no lit point does (fuzz 8217: a tilted light over a floor)

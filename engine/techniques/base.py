@@ -68,6 +68,10 @@ class Technique:
     # the centre below its horizon: the pipeline gives such receivers a view from the part of the emitter
     # they see instead (a sun's: core.lightview.sun_rim_faces; an area or sphere light's: local_rim_lights).
     rim_views = False
+    # The technique fits views of its own from points of the light (REFERENCE's samples): on smooth triangles
+    # the pipeline then reads back where the lit pixels' shadow rays leave from (LightContext.receiver_points,
+    # the terminator lift included), so that those views hold a lifted start instead of losing it off the map.
+    fits_sample_views = False
 
     def needs_for(self, settings) -> tuple:
         """The structures to build for `settings` (names, or structures.need(NAME, **params) where options
