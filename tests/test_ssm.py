@@ -197,16 +197,18 @@ def test_casters_far_from_the_visible_receivers_cost_nothing():
     assert np.all(r.passes["Visibility"] == 1.0)
 
 
-def test_view_has_the_lights_aspect_ratio():
-    """§3.2: occluder-map texels have the light's aspect ratio, the longer side gets the map size."""
+@pytest.mark.parametrize("light_aspect", [True, False])
+def test_view_has_the_lights_aspect_ratio(light_aspect):
+    """§3.2 (ssm_texels LIGHT): occluder-map texels have the light's aspect ratio; by default they are square.
+    Either way the longer side gets the map size and the window holds the pipeline's."""
     from penumbra.engine.core.lightview import LightView
-    base = LightView(np.eye(4), np.eye(4), 10, 10, 0.1, 10.0, False, (-1.0, 1.0, -0.5, 0.5))
-    v = ssm.ssm_view(base, (1.0, 0.5), 128)     # light twice as wide as tall
+    base = LightView(np.eye(4), np.eye(4), 10, 10, 0.1, 10.0, False, (-1.0, 1.0, -0.8, 0.8))
+    v = ssm.ssm_view(base, (1.0, 0.5), 128, light_aspect)     # light twice as wide as tall
     tw, th = v.texel_size()
-    assert abs(tw / th - 2.0) < 1e-9
+    assert abs(tw / th - (2.0 if light_aspect else 1.0)) < 1e-9
     assert max(v.width, v.height) == 128
     x0, x1, y0, y1 = v.window
-    assert x0 <= -1.0 and x1 >= 1.0 and y0 <= -0.5 and y1 >= 0.5
+    assert x0 <= -1.0 and x1 >= 1.0 and y0 <= -0.8 and y1 >= 0.8
 
 
 bpy = None

@@ -7,6 +7,8 @@ its one receiver map rasterised from the light:
   object, and the floor inside sat between the shell's top and bottom in the receiver map);
 - an object shadowing another part of itself (fixed seed 9's monkey; here a torus standing upright, whose
   upper arc shadows the inside of its lower arc).
+Later classes (a sun below its caster, a shell around the camera under a wide sun, a sliver light over a
+wide view) say what failed beside each scene.
 Cycles references are cached."""
 import math
 
@@ -84,6 +86,20 @@ SCENES = {
                 _light("Lamp", "POINT", (-0.8, -0.4, 2.5), (0.0, 0.0, 0.0), 900.0, radius=0.3,
                        soft_falloff=True)],
         camera=_camera((0.3, -2.0, 3.5), (0.2, 0.6, -2.5), lens=30.0)),
+    # A sliver of a rectangle light (0.6 × 0.05 m) 1.6 m over a floor, three casters around it 30-60° off its
+    # axis (fuzz 9001: a 0.30 × 0.035 m light): a view that wide with texels of the light's aspect ratio
+    # (§3.2) had 22 × 256 of them, each 12 times longer across the sliver than along it, and the receivers'
+    # slope-scaled bias and normal offset, taken from the texel's longer side, kept the casters from
+    # shadowing the floor. ssm_texels LIGHT: mae_shadow 0.66; SQUARE (the default): 0.033.
+    "sliver_light_wide_view": dict(
+        seed=-5,
+        objects=[_object("BoxA", "CUBE", (1.6, 0.3, 0.8), (0.25, 0.25, 0.25), rotation=(0.0, 0.0, 0.4)),
+                 _object("BoxB", "CUBE", (-0.9, -1.4, 0.9), (0.2, 0.35, 0.2), rotation=(0.3, 0.0, 0.0)),
+                 _object("Ball", "UV_SPHERE", (-0.4, 1.3, 0.7), (0.3, 0.3, 0.3))],
+        floor=dict(half_size=12.0, rotation=[0.0, 0.0, 0.0], z=0.0),
+        lights=[_light("Sliver", "AREA", (0.0, 0.0, 1.6), (0.05, 0.02, 0.0), 300.0, shape="RECTANGLE",
+                       size=0.6, size_y=0.05)],
+        camera=_camera((0.5, -5.5, 7.5), (0.0, 0.0, 0.0), lens=24.0)),
 }
 
 

@@ -1,11 +1,11 @@
 """Soft Shadow Maps' per-light maps (Atty et al. 2006, §3.1–3.3, §3.5): occluder maps of the casters (front-most;
-farthest back faces for the two-pass method) from the light centre, with texels of the light's aspect ratio,
-each texel tagged with its object index; receiver maps (nearest; farthest receiver, with its normal) made
-from the receiver pixels the camera sees (glsl/ssm/receivers.comp, see techniques/ssm.py); and the micro-patch
-list with each patch's penumbra extent (§3.3). The paper builds the list on the CPU; here glsl/ssm/patches.comp
-builds it on the GPU, row for row what `patch_list` (the numpy reference) gives, and only the patch count and
-the work estimate come back. The occluder-map resolution is lowered until the scatter's estimated work fits
-the budget, so maps and patch list are one structure.
+farthest back faces for the two-pass method) from the light centre, aligned with the light (square texels, or
+of the light's aspect ratio: ssm_view), each texel tagged with its object index; receiver maps (nearest;
+farthest receiver, with its normal) made from the receiver pixels the camera sees (glsl/ssm/receivers.comp,
+see techniques/ssm.py); and the micro-patch list with each patch's penumbra extent (§3.3). The paper builds
+the list on the CPU; here glsl/ssm/patches.comp builds it on the GPU, row for row what `patch_list` (the numpy
+reference) gives, and only the patch count and the work estimate come back. The occluder-map resolution is
+lowered until the scatter's estimated work fits the budget, so maps and patch list are one structure.
 
 Also here: the object-role split (Object → Penumbra → Shadow Role) and the camera-view receiver mask that
 SSM's projection reads (`receiver_mask`, its own structure)."""
@@ -52,16 +52,26 @@ def role_warnings(snap) -> list[str]:
     return out
 
 
-def ssm_view(view: LightView, half, size: int) -> LightView:
-    """The pipeline's light view with texels of the light's aspect ratio (§3.2: micro-patches axis-aligned
-    with the light and of its aspect ratio); the longer side in texels gets `size`. The window grows
-    symmetrically on the short side to a whole number of texels. A sun's eye moves back along its axis so
-    that every depth in the view is positive."""
+def ssm_view(view: LightView, half, size: int, light_aspect: bool = False) -> LightView:
+    """The pipeline's light view, aligned with the light, with square texels, or with `light_aspect` texels
+    of the light's aspect ratio (§3.2: micro-patches axis-aligned with the light and of its aspect ratio);
+    the longer side in texels gets `size`. The window grows symmetrically on the short side to a whole
+    number of texels. A sun's eye moves back along its axis so that every depth in the view is positive.
+
+    Square texels by default (deviation): the paper gives texels the light's aspect so that a patch's
+    penumbra extent is a pyramid (§3.3); patch_list computes the extent per axis, which needs no such
+    shape. Texels of a sliver light's aspect are that many times longer than square ones on one side
+    (fuzz 9001: a 0.30 × 0.035 m light over a view 80° wide, texels 0.29 × 0.034 tan, 41 × 256 of them),
+    and shadow edges, the receivers' slope-scaled bias and their normal offset (common/light_view.glsl,
+    from the texel's longer side) all grow with that side: the bias kept an occluder 1.6 m above the floor
+    from shadowing it."""
     x0, x1, y0, y1 = view.window
     # 1e-30 window units: a degenerate (zero-width) window still divides; 1e-9 texels: a window that is a
     # whole number of texels up to rounding does not get one more.
     w, h = max(x1 - x0, 1e-30), max(y1 - y0, 1e-30)
-    aspect = float(half[0]) / float(half[1]) if half[0] > 0 and half[1] > 0 else 1.0   # texel width / height
+    aspect = 1.0                                                     # texel width / height
+    if light_aspect and half[0] > 0 and half[1] > 0:
+        aspect = float(half[0]) / float(half[1])
     if w >= h * aspect:
         width = size
         tw = w / width
@@ -307,9 +317,10 @@ def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
 
 
 @structure(SSM_MAPS, requires=(RECEIVER_MASK,))
-def build(frame, lc, size: int, budget: float, two_pass: bool):
+def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: bool = False):
     """`size`: texels along the longer side; `budget`: SSM texel updates allowed before the maps are made
-    coarser (§5.1); `two_pass`: also the back-face occluder map (§3.5)."""
+    coarser (§5.1); `two_pass`: also the back-face occluder map (§3.5); `light_aspect`: texels of the light's
+    aspect ratio (§3.2) instead of square ones (ssm_view)."""
     light = lc.light
     for text in role_warnings(frame.snap):
         frame.warn(text)
@@ -346,7 +357,7 @@ def build(frame, lc, size: int, budget: float, two_pass: bool):
     budget *= lc.share          # the light's budget, split over its views by the pixels each holds
     occluder_maps = ("front", "back") if two_pass else ("front",)
     for _attempt in range(4):
-        view = ssm_view(lc.view, half, size)
+        view = ssm_view(lc.view, half, size, light_aspect)
         with frame.timings.stage("ssm_maps"):
             maps = _draw_maps(frame, lc, view, casters, two_pass, lc.structures[RECEIVER_MASK])
             counted = _count_patches(frame, view, half, [maps[n] for n in occluder_maps], maps["far"], bias)

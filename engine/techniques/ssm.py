@@ -3,7 +3,8 @@ Efficient Sampling of Light Source Visibility").
 
 Per light (Fig. 3 of the paper):
   1. occluder map (casters) and receiver depth maps (receivers) from the light centre, aligned with the
-     light and with texels of its aspect ratio (§3.1–3.2);
+     light (§3.1–3.2), with square texels (deviation: the paper's texels of the light's aspect ratio, the
+     `ssm_texels` option, make a sliver light's texels long on one side; see ssm_maps.ssm_view);
   2. every occluder texel becomes a micro-patch parallel to the light; its penumbra extent on the
      soft-shadow-map plane is an axis-aligned rectangle (§3.3; the paper computes it on the CPU, here a
      compute pass does, with the work estimate that can lower the map resolution: only the patch count and
@@ -77,6 +78,11 @@ class SoftShadowMaps(Technique):
         Option("ssm_map_size", 256, "Occluder Map Size",
                "Texels along the longer side of the occluder, receiver and soft shadow maps (the paper "
                "finds ~200 near optimal; cost grows with its square times the penumbra area)", 16, 2048),
+        Option("ssm_texels", "SQUARE", "Texels", "Shape of the occluder-map texels", items=(
+            ("SQUARE", "Square", "Square texels: a sliver light's maps as fine along both axes (default)"),
+            ("LIGHT", "Light's Aspect (paper)", "Texels of the light's aspect ratio (§3.2): along a sliver "
+                      "light's long side they are that many times longer, and so are the bias and the "
+                      "shadow edges' steps"))),
         Option("ssm_passes", "TWO", "Passes", "Occluder maps scattered", items=(
             ("ONE", "One Pass", "Front-most occluder surfaces only"),
             ("TWO", "Two Passes", "Front-most and farthest back-facing occluder surfaces, merged by maximum "
@@ -102,7 +108,7 @@ class SoftShadowMaps(Technique):
     # ------------------------------------------------------------------------------------------------------
     def needs_for(self, s) -> tuple:
         return (need(SSM_MAPS, size=int(s.option("ssm_map_size")), budget=float(s.option("ssm_budget")) * 1e6,
-                     two_pass=s.option("ssm_passes") == "TWO"),
+                     two_pass=s.option("ssm_passes") == "TWO", light_aspect=s.option("ssm_texels") == "LIGHT"),
                 need(SOFT_SHADOW_MAP, precision=s.option("ssm_precision"), method=s.option("ssm_scatter"),
                      weighted=s.option("ssm_weighting") == "IRRADIANCE"),
                 RECEIVER_MASK)
