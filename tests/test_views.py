@@ -98,6 +98,20 @@ def test_a_view_with_nothing_to_shadow_is_not_clamped():
     assert lightview.fit(light, receivers, over, 256).clamped
 
 
+def test_a_caster_behind_the_eye_over_receivers_behind_it_clamps_the_view():
+    """A point light's view looks at its receivers' middle: a large floor reaching far to one side turns it
+    away from a caster on the other, behind the eye's plane with the floor under it. Nothing in front is
+    shadowable, but the floor behind is: the view must count as clamped so that those pixels get cube faces
+    (fuzz 9145: mae_shadow 0.997 → 0.003, the shadow was simply missing)."""
+    from dataclasses import replace
+    from penumbra.engine.core.snapshot import POINT
+    light = replace(_light(size=0.0), kind=POINT, radius=0.0)            # a point at z = 2
+    floor = (np.array([-3.0, -1.0, 0.0]), np.array([19.0, 1.0, 0.1]))   # its middle at x = 8: the view faces +X
+    behind = (np.array([-2.0, -0.5, 0.0]), np.array([-1.0, 0.5, 1.0]))
+    assert lightview.fit(light, floor, behind, 256).clamped
+    assert not lightview.fit(light, (np.array([3.0, -1.0, 0.0]), np.array([19.0, 1.0, 0.1])), behind, 256).clamped
+
+
 def room_with_light():
     """An area light in a closed room with a block beside it under the ceiling: the walls next to the light
     are lit at grazing angles and the block shadows a wall far off the light's axis."""

@@ -171,6 +171,17 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     # is lit for certain, and the view is not clamped however wide the fallback window below is.
     has_shadowable = shadowable[1] >= shadowable[0] and shadowable[3] >= shadowable[2]
     clamped = has_shadowable and bool(np.abs(np.asarray(shadowable)).max() > limit)
+    if not is_sun and not clamped and ((-rec[:, 2] <= near_floor).any() and (-cas[:, 2] <= near_floor).any()):
+        # Receivers and casters both reaching behind the eye's plane: what a caster shadows there, no window
+        # of this view holds. The same test from the opposite direction decides it (fuzz 9145: a point light
+        # aimed at a large floor's middle, the only caster behind it, its shadow on the floor lost).
+        flip = np.array([1.0, 1.0, -1.0])
+        back_r, back_r_depth = _tangent_window(rec * flip, near_floor)
+        back_c, back_c_depth = _tangent_window(cas * flip, near_floor)
+        z_b = max(back_c_depth.min(), near_floor)
+        back = _intersect(back_r, _widen(back_c, half * max(penumbra_spread(z_b, max(back_r_depth.max(), z_b),
+                                                                              False), 0.0)))
+        clamped = bool(back[1] >= back[0] and back[3] >= back[2])
     window = np.clip(window, -limit, limit)
     pad = max(window[1] - window[0], window[3] - window[2], 1e-9) * margin
     window = (window[0] - pad, window[1] + pad, window[2] - pad, window[3] + pad)
