@@ -61,6 +61,9 @@
 #ifndef COVERAGE
 #define COVERAGE 0              // 1: coarse micro-occluders shrunk to their occluding share (see cover)
 #endif
+#ifndef SPLIT
+#define SPLIT 0                 // 1: coarse micro-occluders that backproject large are split (see gather_range)
+#endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
 #endif
@@ -82,6 +85,10 @@ uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per c
 uniform uint u_valid[BITS];     // per bitmask row: samples inside the light's shape
 #endif
 uniform float u_valid_count;
+#if SPLIT
+uniform float u_split;          // a coarse micro-occluder wider on the light than this share of it is split
+uniform int u_split_extra;      // at most this many finer micro-occluders per pixel and gather from splits
+#endif
 
 uniform sampler2D u_depth;      // layer 0 depth map (R32F), for delta lights
 uniform sampler2D u_hsm0;       // per layer: min/max pyramid (RG32F, power-of-two padded)
@@ -512,13 +519,17 @@ vec2 backproject(Pixel p, vec2 w, float z) {
 // Micropatch of cell c (level l): the cell's square at its (minimum) depth, parallel to the light. Gap
 // filling (GBP06): when the left (bottom) neighbour is an occluder too, the patch's left (bottom) edge is
 // extended to where that neighbour's right (top) edge backprojects, closing the gap between them. False
-// when the cell occludes nothing; else its light rectangle [a, b] and occluded fraction `area`.
-bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
+// when the cell occludes nothing; else its light rectangle [a, b] and occluded fraction `area`, and (SPLIT)
+// `whole`, the light rectangle of the whole cell before the refit and coverage shrink it (the split's test).
+bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
     float s = float(1 << l);
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if SPLIT
+    whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
+#endif
 #if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
 #endif
@@ -546,12 +557,15 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
 // Microrect of texel c (level l, §5.2): a micropatch over its own extent at its (minimum) depth; gap filling
 // as for micropatches, towards the left/bottom neighbour microrect when its extent reaches this one's. At
 // level 0 extent and depth are the texel's own, so this is exactly micropatch().
-bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
+bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
     vec4 ext;
     float z = rect_depth(layer, l, c, ext);
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if SPLIT
+    whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
+#endif
 #if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
 #endif
@@ -755,7 +769,16 @@ Occlusion no_occlusion() {
 // `o`. One loop over a flat index, and the bitmask rows in a loop of constant length (which the compiler
 // unrolls): a software GL that ends a shader's loops after a fixed number of iterations in all (llvmpipe:
 // 65535) then sees one iteration per micro-occluder, and CHUNKED can bound what one dispatch asks for.
-void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o) {
+#if SPLIT
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+const int SPLIT_PARTS = 9;
+#else
+const int SPLIT_PARTS = 4;
+#endif
+const int SPLIT_STACK = 48;     // depth first: a split adds at most SPLIT_PARTS − 1 entries per level
+#endif
+
+void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o, inout float count) {
     if (i1 <= i0) return;
     ivec2 first = (lo >> l) - QUAD_EXTRA, last = hi >> l;
     ivec2 n = last - first + 1;
@@ -763,23 +786,81 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
     // The first cell by division, the rest by stepping (integer division is slow on a CPU's vectors).
     int layer = i0 / per_layer, j = i0 - layer * per_layer;
     ivec2 c = first + ivec2(j % n.x, j / n.x);
+#if SPLIT
+    int extra = u_split_extra;
+#endif
     for (int i = i0; i < i1; ++i) {
-        vec2 a, b;
-        float area;
-#if PRIMITIVE == PRIMITIVE_MICROPATCH
-        bool hit = micropatch(p, layer, l, c, a, b, area);
-#elif PRIMITIVE == PRIMITIVE_MICRORECT
-        bool hit = microrect(p, layer, l, c, a, b, area);
+#if SPLIT
+        // Near-field split (ours): a coarse micro-occluder stands for its texels only as far as its box's
+        // error (about one cell) is small on the light; backprojected, a cell grows as 1/(d − z), so next to
+        // the receiver (contact shadows, the ground at the foot of a wall, a surface beside the receiver that
+        // the cell lifts above its horizon) one cell spans much of the light and its error is the penumbra.
+        // Such a cell is replaced by its finer parts (micropatches: the 2×2 cells of level l − 1;
+        // microrects: the level-(l − 1) microrects whose reference point lies in its extent), depth first,
+        // each split again while it is still that large, down to level 0. Cells that backproject large
+        // and land on the light lie within about 1/u_split cells of the receiver's map position, so the
+        // extra work stays near the receiver; u_split_extra caps it.
+        ivec3 stack[SPLIT_STACK];
+        int top = 0;
+        stack[top++] = ivec3(c, l);
+        while (top > 0) {
+            ivec3 e = stack[--top];
+            int le = e.z;
+            ivec2 ce = e.xy;
 #else
-        bool hit = microquad(p, layer, l, c, a, b, area);
+        {
+            int le = l;
+            ivec2 ce = c;
 #endif
-        if (hit) {
-            o.area += area;
+            vec2 a, b;
+            float area;
+            vec4 whole;
+#if PRIMITIVE == PRIMITIVE_MICROPATCH
+            bool hit = micropatch(p, layer, le, ce, a, b, area, whole);
+#elif PRIMITIVE == PRIMITIVE_MICRORECT
+            bool hit = microrect(p, layer, le, ce, a, b, area, whole);
+#else
+            bool hit = microquad(p, layer, le, ce, a, b, area);
+#endif
+#if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
+            // Judged on the whole cell (before refit and coverage): its error is the extent it stands for.
+            if (hit && le > 0 && any(greaterThan(whole.zw - whole.xy, vec2(2.0 * u_split)))
+                    && all(lessThan(whole.xy, vec2(1.0))) && all(greaterThan(whole.zw, vec2(-1.0)))
+                    && top + SPLIT_PARTS <= SPLIT_STACK && extra >= SPLIT_PARTS) {
+                int f = le - 1;
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+                vec4 ext;
+                rect_depth(layer, le, ce, ext);
+#endif
+                for (int k = 0; k < SPLIT_PARTS; ++k) {
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+                    // Its members lie among these nine; a member's reference texel can be empty (its
+                    // extent then need not hold it), so a part is taken when its extent meets this one's
+                    // (a neighbour's part taken twice only ORs the same samples again).
+                    ivec2 j = 2 * ce + ivec2(k % 3 - 1, k / 3 - 1);
+                    vec4 ej;
+                    float zj = rect_depth(layer, f, j, ej);
+                    if (!(zj < EMPTY_DEPTH) || any(greaterThanEqual(ej.xy, ext.zw))
+                            || any(lessThanEqual(ej.zw, ext.xy))) continue;
+#else
+                    ivec2 j = 2 * ce + ivec2(k & 1, k >> 1);
+                    if (cell_outside(f, j)) continue;
+#endif
+                    stack[top++] = ivec3(j, f);
+                    --extra;
+                    count += 1.0;
+                }
+                continue;
+            }
+#endif
+            if (hit) {
+                o.area += area;
 #if BITS > 0
-            Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
-            if (s.rows.x < s.rows.y)
-                for (int r = 0; r < BITS; ++r) o.bits[r] |= span_row(s, r);   // zero outside s.rows
+                Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
+                if (s.rows.x < s.rows.y)
+                    for (int r = 0; r < BITS; ++r) o.bits[r] |= span_row(s, r);   // zero outside s.rows
 #endif
+            }
         }
         if (++c.x > last.x) {
             c.x = first.x;
@@ -834,11 +915,11 @@ Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, int l, inout float count, int slot
 #if CHUNKED
     Occlusion o = load_state(p.px, slot);
     int w0 = u_chunk * u_chunk_size - start;
-    gather_range(p, lo, hi, l, clamp(w0, 0, n), clamp(w0 + u_chunk_size, 0, n), o);
+    gather_range(p, lo, hi, l, clamp(w0, 0, n), clamp(w0 + u_chunk_size, 0, n), o, count);
     store_state(p.px, slot, o);
 #else
     Occlusion o = no_occlusion();
-    gather_range(p, lo, hi, l, 0, n, o);
+    gather_range(p, lo, hi, l, 0, n, o, count);
 #endif
     start += n;
     return o;
