@@ -18,7 +18,7 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
   the light grazes); and (bp_coverage, ours) shrunk to the share of its texels nearer than the receiver, from
   the count, mean, maximum and variance of their depths (structures/coverage.py, the microrects' members), so
   that bars finer than a coarse cell with gaps between them do not fuse into an umbra; and (bp_split, ours, off
-  by default for its cost) split into its finer parts, down to level 0, while it backprojects wider than a
+  by default until measured on every scene) split into its finer parts, down to level 0, while it backprojects wider than a
   share of the light (next to contacts);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
@@ -182,10 +182,10 @@ def budget_max_of(o) -> float:
 
 
 # Finer micro-occluders the near-field split (bp_split) may add per pixel and gather (per dispatch when
-# chunked). Next to a contact every texel within about 1/bp_split texels of the receiver splits down to level
-# 0, whatever the budget (slab at 128²: ~2000 in a pixel's two gathers). The cap keeps llvmpipe's shared loop
-# counter (one per SIMD group of 8 lanes, engine/gpu/loops.py) below its limit: a dispatch's two gathers of
-# CHUNK_CELLS each plus 8 lanes' splits, 2·(16384 + 8·1024) = 49152 < 65535 (at 4096 it was hit: garbage).
+# chunked): next to a contact cells split down to level 0, whatever the budget. The cap keeps llvmpipe's
+# shared loop counter (one per SIMD group of 8 lanes, engine/gpu/loops.py) below its limit: a dispatch's two
+# gathers of CHUNK_CELLS each plus 8 lanes' parts, 2·(16384 + 8·1024) = 49152 < 65535 (a cap of 4096 was
+# seen to pass it: garbage).
 SPLIT_EXTRA = 1024
 
 
@@ -247,8 +247,8 @@ class Backprojection(Technique):
         Option("bp_split", 0.0, "Near-field split", "Coarse micro-occluders (micropatches, microrects) whose "
                "backprojection is wider than this share of the light's side are replaced by their finer parts, "
                "down to level 0: next to the receiver (contact shadows, a surface beside it) one coarse cell "
-               "spans much of the light and its error becomes the penumbra's (0.15: slab 0.062 → 0.027, tilted "
-               "0.041 → 0.030 at 128², for 7× the frame time); 0: off, the papers (not in them)",
+               "spans much of the light and its error becomes the penumbra's (0.15: slab 0.062 → 0.024, tilted "
+               "0.041 → 0.029 at 128², for 1.7–2× the frame time); 0: off, the papers (not in them)",
                min=0.0, max=4.0),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),

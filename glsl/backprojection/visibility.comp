@@ -595,7 +595,7 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
 // when all four are occluders. Area accumulation: the quad with its corners clamped to the light rectangle
 // (Fig. 6 left; watertight). Bitmask (and round lights): the axis-aligned rectangle through the midpoints of
 // the quad's edges (Fig. 6 right). Returns like micropatch.
-bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
+bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
     float s = float(1 << l);
     vec2 v[4];
     area = 0.0;
@@ -769,13 +769,12 @@ Occlusion no_occlusion() {
 // `o`. One loop over a flat index, and the bitmask rows in a loop of constant length (which the compiler
 // unrolls): a software GL that ends a shader's loops after a fixed number of iterations in all (llvmpipe:
 // 65535) then sees one iteration per micro-occluder, and CHUNKED can bound what one dispatch asks for.
-#if SPLIT
-#if PRIMITIVE == PRIMITIVE_MICRORECT
-const int SPLIT_PARTS = 9;
+// OR the light rectangle [a, b] (occluded fraction `area`) into `o`: a macro, not a function, so that the
+// bitmask is not copied per micro-occluder (bitmask rows outside the span OR zero).
+#if BITS > 0
+#define ADD_OCCLUDER(o, a, b, area) { (o).area += (area); Span s_ = rect_span((a) * 0.5 + 0.5, (b) * 0.5 + 0.5); if (s_.rows.x < s_.rows.y) for (int r_ = 0; r_ < BITS; ++r_) (o).bits[r_] |= span_row(s_, r_); }
 #else
-const int SPLIT_PARTS = 4;
-#endif
-const int SPLIT_STACK = 48;     // depth first: a split adds at most SPLIT_PARTS − 1 entries per level
+#define ADD_OCCLUDER(o, a, b, area) { (o).area += (area); }
 #endif
 
 void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o, inout float count) {
@@ -786,82 +785,68 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
     // The first cell by division, the rest by stepping (integer division is slow on a CPU's vectors).
     int layer = i0 / per_layer, j = i0 - layer * per_layer;
     ivec2 c = first + ivec2(j % n.x, j / n.x);
-#if SPLIT
+#if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
     int extra = u_split_extra;
 #endif
     for (int i = i0; i < i1; ++i) {
-#if SPLIT
-        // Near-field split (ours): a coarse micro-occluder stands for its texels only as far as its box's
-        // error (about one cell) is small on the light; backprojected, a cell grows as 1/(d − z), so next to
-        // the receiver (contact shadows, the ground at the foot of a wall, a surface beside the receiver that
-        // the cell lifts above its horizon) one cell spans much of the light and its error is the penumbra.
-        // Such a cell is replaced by its finer parts (micropatches: the 2×2 cells of level l − 1;
-        // microrects: the level-(l − 1) microrects whose reference point lies in its extent), depth first,
-        // each split again while it is still that large, down to level 0. Cells that backproject large
-        // and land on the light lie within about 1/u_split cells of the receiver's map position, so the
-        // extra work stays near the receiver; u_split_extra caps it.
-        ivec3 stack[SPLIT_STACK];
-        int top = 0;
-        stack[top++] = ivec3(c, l);
-        while (top > 0) {
-            ivec3 e = stack[--top];
-            int le = e.z;
-            ivec2 ce = e.xy;
-#else
-        {
-            int le = l;
-            ivec2 ce = c;
-#endif
-            vec2 a, b;
-            float area;
-            vec4 whole;
+        vec2 a, b;
+        float area;
+        vec4 whole;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
-            bool hit = micropatch(p, layer, le, ce, a, b, area, whole);
+        bool hit = micropatch(p, layer, l, c, a, b, area, whole);
 #elif PRIMITIVE == PRIMITIVE_MICRORECT
-            bool hit = microrect(p, layer, le, ce, a, b, area, whole);
+        bool hit = microrect(p, layer, l, c, a, b, area, whole);
 #else
-            bool hit = microquad(p, layer, le, ce, a, b, area);
+        bool hit = microquad(p, layer, l, c, a, b, area, whole);
 #endif
 #if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
-            // Judged on the whole cell (before refit and coverage): its error is the extent it stands for.
-            if (hit && le > 0 && any(greaterThan(whole.zw - whole.xy, vec2(2.0 * u_split)))
-                    && all(lessThan(whole.xy, vec2(1.0))) && all(greaterThan(whole.zw, vec2(-1.0)))
-                    && top + SPLIT_PARTS <= SPLIT_STACK && extra >= SPLIT_PARTS) {
-                int f = le - 1;
-#if PRIMITIVE == PRIMITIVE_MICRORECT
-                vec4 ext;
-                rect_depth(layer, le, ce, ext);
-#endif
-                for (int k = 0; k < SPLIT_PARTS; ++k) {
-#if PRIMITIVE == PRIMITIVE_MICRORECT
-                    // Its members lie among these nine; a member's reference texel can be empty (its
-                    // extent then need not hold it), so a part is taken when its extent meets this one's
-                    // (a neighbour's part taken twice only ORs the same samples again).
-                    ivec2 j = 2 * ce + ivec2(k % 3 - 1, k / 3 - 1);
-                    vec4 ej;
-                    float zj = rect_depth(layer, f, j, ej);
-                    if (!(zj < EMPTY_DEPTH) || any(greaterThanEqual(ej.xy, ext.zw))
-                            || any(lessThanEqual(ej.zw, ext.xy))) continue;
-#else
-                    ivec2 j = 2 * ce + ivec2(k & 1, k >> 1);
-                    if (cell_outside(f, j)) continue;
-#endif
-                    stack[top++] = ivec3(j, f);
-                    --extra;
-                    count += 1.0;
-                }
-                continue;
-            }
-#endif
-            if (hit) {
-                o.area += area;
-#if BITS > 0
-                Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
-                if (s.rows.x < s.rows.y)
-                    for (int r = 0; r < BITS; ++r) o.bits[r] |= span_row(s, r);   // zero outside s.rows
-#endif
-            }
+        // Near-field split (ours): a coarse micro-occluder stands for its texels only as far as its error
+        // (about its whole extent) is small on the light; backprojected, a cell grows as 1/(d − z), so next to
+        // the receiver (contact shadows, the ground at a wall's foot, a surface beside the receiver that the
+        // cell lifts above its horizon) one cell spans much of the light and its error is the penumbra. Such a
+        // cell (judged whole, before refit and coverage) is replaced by the micro-occluders of the level f
+        // whose cells are k = l − f halvings smaller, enough to bring it under u_split of the light's side:
+        // micropatches the 2^k × 2^k cells of level f inside it, microrects the level-f microrects whose
+        // reference texel lies in its extent (level 0: exactly its texels). One flat loop, no stack (a local
+        // array made every gather ~5× slower on llvmpipe); u_split_extra caps the parts per gather.
+        int k = 0;
+        if (hit && l > 0 && all(lessThan(whole.xy, vec2(1.0))) && all(greaterThan(whole.zw, vec2(-1.0)))) {
+            float wide = max(whole.z - whole.x, whole.w - whole.y) / (2.0 * u_split);
+            k = wide > 1.0 ? min(int(ceil(log2(wide))), l) : 0;
         }
+        ivec2 s0 = ivec2(0), s1 = ivec2(-1);
+        for (; k > 0; --k) {            // the finest level whose parts the cap still allows
+            int f = l - k;
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+            vec4 ext;
+            rect_depth(layer, l, c, ext);
+            s0 = (ivec2(ext.xy) + (1 << f) - 1) >> f;
+            s1 = (ivec2(ext.zw) + (1 << f) - 1 >> f) - 1;
+#else
+            s0 = c << k;
+            s1 = min(((c + 1) << k) - 1, ((u_map_size + (1 << f) - 1) >> f) - 1);
+#endif
+            ivec2 m = max(s1 - s0 + 1, ivec2(0));
+            if (m.x * m.y <= extra) break;
+        }
+        if (any(lessThan(s1, s0))) k = 0;       // no parts found: keep the micro-occluder whole
+        if (k > 0) {
+            int f = l - k;
+            int nx = s1.x - s0.x + 1, parts = nx * (s1.y - s0.y + 1);
+            extra -= parts;
+            count += float(parts);
+            for (int q = 0; q < parts; ++q) {
+                ivec2 jq = s0 + ivec2(q % nx, q / nx);
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+                bool h = microrect(p, layer, f, jq, a, b, area, whole);
+#else
+                bool h = micropatch(p, layer, f, jq, a, b, area, whole);
+#endif
+                if (h) ADD_OCCLUDER(o, a, b, area);
+            }
+        } else
+#endif
+        if (hit) ADD_OCCLUDER(o, a, b, area);
         if (++c.x > last.x) {
             c.x = first.x;
             if (++c.y > last.y) {
