@@ -81,8 +81,9 @@ def test_microrects_overestimate_coarse_occluders_less_than_micropatches(tilted,
     −0.023/−0.047 for microrects (−0.046/−0.089 when the diagonal joined by position only)."""
     v0 = _vis(tilted, bp(bp_budget_map="UNBOUNDED"))
     bias = {}
-    for prim in ("MICROPATCH", "MICRORECT"):     # the papers' cells, without our refit and coverage
-        v = _vis(tilted, bp(bp_force_level=level, bp_primitive=prim, bp_coarse_fit="NONE", bp_coverage=False))
+    for prim in ("MICROPATCH", "MICRORECT"):     # the papers' cells, without our refit, coverage and split
+        v = _vis(tilted, bp(bp_force_level=level, bp_primitive=prim, bp_coarse_fit="NONE", bp_coverage=False,
+                             bp_split=0.0))
         m = (v0 < 0.99) | (v < 0.99)
         bias[prim] = float(np.mean((v - v0)[m]))
     assert bias["MICROPATCH"] < -0.02, bias                     # the coarse level does over-darken
@@ -112,11 +113,12 @@ def test_coarse_refit_removes_part_of_the_coarse_levels_over_darkening(steep, pr
     |error| against level 0 (b = ∞) over shadowed pixels, 256² map, NONE → EXTENT → MEAN: micropatches
     level 2 −0.041 → −0.019 → −0.012, level 3 −0.085 → −0.048 → −0.042; microrects (whose merge already
     follows depth) level 3 −0.047 → −0.040 → −0.041, level 4 −0.092 → −0.076 → −0.081 (the refit alone:
-    bp_coverage off)."""
+    bp_coverage and bp_split off)."""
     v0 = _vis(steep, bp(bp_budget_map="UNBOUNDED", bp_primitive=prim))
     bias, err = {}, {}
     for fit in ("NONE", "EXTENT", "MEAN"):
-        v = _vis(steep, bp(bp_force_level=level, bp_primitive=prim, bp_coarse_fit=fit, bp_coverage=False))
+        v = _vis(steep, bp(bp_force_level=level, bp_primitive=prim, bp_coarse_fit=fit, bp_coverage=False,
+                            bp_split=0.0))
         m = (v0 < 0.99) | (v < 0.99)
         bias[fit] = float(np.mean((v - v0)[m]))
         err[fit] = float(np.mean(np.abs(v - v0)[m]))
@@ -141,6 +143,50 @@ def grid_scene():
                            stress.camera(eye=(0.0, -3.0, 4.0), size=64), "grid")
 
 
+def contact_scene():
+    """A ball resting on the ground and an upright wall standing on it under a 2 m square light: receivers next
+    to their occluders (the contact under the ball, the ground at the wall's foot), where one coarse cell
+    backprojects over much of the light."""
+    parts = [("Ground", stress.quad((0, 0, 0), 4.0), True, True),
+             ("Ball", stress.sphere((0.0, 0.0, 0.5), 0.5, rings=12), True, True),
+             ("Wall", stress.box((0.9, -0.05, 0.0), (2.1, 0.05, 1.0)), True, True)]
+    light = stress.area_light((0.5, 0.5, 3.0), size=2.0)
+    cam = stress.camera(eye=(0.8, -3.5, 2.2), target=(0.7, 0.0, 0.3), size=64)
+    return stress.assemble(parts, [light], cam, "contact")
+
+
+def test_near_field_split_removes_the_coarse_levels_contact_error():
+    """bp_split: next to a contact (a ball on the ground, a wall's foot) a coarse micro-occluder backprojects
+    over much of the light, and its approximation (one depth, one box for 2^ℓ × 2^ℓ texels) becomes the
+    penumbra's error; split into its finer parts while it is that wide, it darkens as its texels do. Budget 4
+    on a 256² map (the levels b = 16 takes on a 1024² map), microrects, mean |error| against level 0 (b = ∞)
+    over shadowed pixels: split off (the default) 0.048, bp_split 0.3 0.030, 0.15 0.017."""
+    snap = contact_scene()
+    v0 = _vis(snap, bp(bp_budget_map="UNBOUNDED"))
+    assert (v0 < 0.99).sum() > 300
+    err = {}
+    for split in (0.0, 0.15):
+        v = _vis(snap, bp(bp_budget=4, bp_split=split))
+        m = (v0 < 0.99) | (v < 0.99)
+        err[split] = float(np.mean(np.abs(v - v0)[m]))
+    assert err[0.0] > 0.03, err                     # the coarse levels do err at the contacts
+    assert err[0.15] < 0.5 * err[0.0], err
+    assert err[0.15] < 0.02, err
+
+
+def test_near_field_split_to_the_finest_level_is_level_0(tilted):
+    """Every micro-occluder split (a threshold near 0) down to level 0 is the level-0 gather: the parts of a
+    micropatch are its 2×2 finer cells, so at a forced coarse level the visibility approaches b = ∞ as far as
+    the cap on split parts (SPLIT_EXTRA) reaches. Forced level 2, mean |error| against b = ∞: 0.0098 unsplit,
+    0.0017 split."""
+    v0 = _vis(tilted, bp(bp_budget_map="UNBOUNDED", bp_primitive="MICROPATCH"))
+    coarse = _vis(tilted, bp(bp_force_level=2, bp_primitive="MICROPATCH", bp_split=0.0))
+    split = _vis(tilted, bp(bp_force_level=2, bp_primitive="MICROPATCH", bp_split=0.001))
+    m = (v0 < 0.99) | (coarse < 0.99)
+    assert np.mean(np.abs(coarse - v0)[m]) > 0.005
+    assert np.mean(np.abs(split - v0)[m]) < 0.3 * np.mean(np.abs(coarse - v0)[m])
+
+
 @pytest.mark.parametrize("prim", ["MICROPATCH", "MICRORECT"])
 def test_coverage_keeps_occluders_finer_than_a_coarse_cell_from_fusing(prim):
     """bp_coverage: a coarse cell over thin bars and the ground between them is one micro-occluder at the
@@ -154,7 +200,7 @@ def test_coverage_keeps_occluders_finer_than_a_coarse_cell_from_fusing(prim):
     for level in ({"bp_force_level": 2}, {"bp_force_level": 3}, {}):
         bias = {}
         for cover in (False, True):
-            v = _vis(snap, bp(bp_primitive=prim, bp_coverage=cover, **level))
+            v = _vis(snap, bp(bp_primitive=prim, bp_coverage=cover, bp_split=0.0, **level))
             m = (v0 < 0.99) | (v < 0.99)
             bias[cover] = float(np.mean((v - v0)[m]))
         assert bias[False] < -0.05, (level, bias)           # without it the grid fuses (too dark)

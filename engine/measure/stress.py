@@ -120,6 +120,18 @@ def strip(p0, p1, width, z) -> np.ndarray:
     return np.array([[a, b, c], [a, c, e]])
 
 
+def sphere(center, radius, rings=16) -> np.ndarray:
+    """A UV sphere of `rings` latitude bands and 2·rings longitude segments, outward facing."""
+    th = np.linspace(0.0, np.pi, rings + 1)[:, None]
+    ph = np.linspace(0.0, 2.0 * np.pi, 2 * rings + 1)[None, :]
+    p = np.asarray(center, float) + radius * np.stack(
+        np.broadcast_arrays(np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)), axis=-1)
+    a, b, c, d = p[:-1, :-1], p[1:, :-1], p[1:, 1:], p[:-1, 1:]
+    tris = [np.stack([a[1:], b[1:], d[1:]], 2).reshape(-1, 3, 3),        # the poles' bands are triangles
+            np.stack([b[:-1], c[:-1], d[:-1]], 2).reshape(-1, 3, 3)]
+    return np.concatenate(tris)
+
+
 def assemble(parts, lights, cam, name, warnings=None) -> SceneSnapshot:
     """parts: list of (name, triangles (T,3,3), caster, receiver). Flat normals from the winding."""
     pos, oid, objects = [], [], []

@@ -17,7 +17,9 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
   whole cell at the minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces
   the light grazes); and (bp_coverage, ours) shrunk to the share of its texels nearer than the receiver, from
   the count, mean, maximum and variance of their depths (structures/coverage.py, the microrects' members), so
-  that bars finer than a coarse cell with gaps between them do not fuse into an umbra;
+  that bars finer than a coarse cell with gaps between them do not fuse into an umbra; and (bp_split, ours, off
+  by default until measured on every scene) split into its finer parts, down to level 0, while it backprojects wider than a
+  share of the light (next to contacts);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
 * round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
@@ -172,6 +174,21 @@ def gather_cells_bound(map_size, layers: int, quad_extra: int, budget_mode: int,
     return layers * (cells(0, 4 * b + 2 + quad_extra) + cells(min(1, levels - 1), 2 * b + 2 + quad_extra))
 
 
+def budget_max_of(o) -> float:
+    """The largest budget b_mo the budget map gives any pixel."""
+    mode = o["bp_budget_map"]
+    return max(float(o["bp_budget"]), float(o["bp_budget_border"]) if mode == "BORDER"
+               else float(o["bp_budget_low"]) if mode == "IMPORTANCE" else 0.0)
+
+
+# Finer micro-occluders the near-field split (bp_split) may add per pixel and gather (per dispatch when
+# chunked): next to a contact cells split down to level 0, whatever the budget. The cap keeps llvmpipe's
+# shared loop counter (one per SIMD group of 8 lanes, engine/gpu/loops.py) below its limit: a dispatch's two
+# gathers of CHUNK_CELLS each plus 8 lanes' parts, 2·(16384 + 8·1024) = 49152 < 65535 (a cap of 4096 was
+# seen to pass it: garbage).
+SPLIT_EXTRA = 1024
+
+
 def _mask_rows(valid: np.ndarray) -> list[int]:
     rows = [0] * len(valid)
     for l_, row in enumerate(valid):
@@ -227,6 +244,13 @@ class Backprojection(Technique):
         Option("bp_coverage", True, "Coarse coverage", "Coarse micro-occluders (micropatches, microrects) "
                "shrunk to the share of their texels nearer than the receiver, from their depth statistics: "
                "occluders finer than a cell (grids, fences) stop fusing into an umbra (not in the papers)"),
+        Option("bp_split", 0.0, "Near-field split", "Coarse micro-occluders (micropatches, microrects) whose "
+               "backprojection is wider than this share of the light's side are replaced by their finer parts, "
+               "down to level 0: next to the receiver (contact shadows, a surface beside it) one coarse cell "
+               "spans much of the light and its error becomes the penumbra's (0.15 at 128²: slab 0.062 → 0.024, "
+               "suzanne 0.036 → 0.029, tilted 0.041 → 0.029, for 1.8–3.2× the frame time); 0: off, the papers "
+               "(not in them)",
+               min=0.0, max=4.0),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
         Option("bp_filter_passes", 0, "Filter passes",
@@ -258,9 +282,9 @@ class Backprojection(Technique):
            {"bp_refinement": "YSM"},
            {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}]
         # Ours: coarse micro-occluders refitted to their occluding finer parts (MEAN, the default), and the
-        # papers' whole cell at its minimum depth; the coverage shrink off.
+        # papers' whole cell at its minimum depth; the coverage shrink off; the near-field split on (off by default).
         + [{"bp_coarse_fit": "NONE"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"},
-           {"bp_coverage": False}])
+           {"bp_coverage": False}, {"bp_split": 0.15}, {"bp_split": 0.3}])
 
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
@@ -276,6 +300,11 @@ class Backprojection(Technique):
                 *((need(MICRORECTS, stats=True) if self._coverage(o) else MICRORECTS,)
                   if o["bp_primitive"] == "MICRORECT" else ()),
                 *((COVERAGE,) if self._coverage(o) and o["bp_primitive"] == "MICROPATCH" else ()))
+
+    @staticmethod
+    def _split(o) -> float:
+        """The near-field split's threshold, 0 where it does not apply (microquads have no finer parts)."""
+        return 0.0 if o["bp_primitive"] == "MICROQUAD" else float(o["bp_split"])
 
     @staticmethod
     def _coverage(o) -> bool:
@@ -361,7 +390,10 @@ class Backprojection(Technique):
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
                    "GROW": int(bool(o["bp_query_growth"])), "LOQ": LOQ_INTEGER,
                    "REFIT": REFIT_NONE if primitive == PRIMITIVE_MICROQUAD else REFIT[o["bp_coarse_fit"]],
-                   "COVERAGE": int(self._coverage(o))}
+                   "COVERAGE": int(self._coverage(o)),
+                   "SPLIT": int(self._split(o) > 0.0)}
+        if defines["SPLIT"]:
+            uniforms["u_split"], uniforms["u_split_extra"] = self._split(o), SPLIT_EXTRA
         frame.progress.check()
         if blend:
             with frame.timings.stage("bp_loq"):
@@ -374,10 +406,8 @@ class Backprojection(Technique):
                 lc.stats.update({"level_drop_max": float(drop.max()) if bp.any() else 0.0,
                                  "level_change_max": float(np.abs(drop).max()) if bp.any() else 0.0})
         with frame.timings.stage("bp_gather"):
-            budget_max = max(float(o["bp_budget"]), float(o["bp_budget_border"]) if budget_mode == BUDGET_BORDER
-                             else float(o["bp_budget_low"]) if budget_mode == BUDGET_IMPORTANCE else 0.0)
             worst = gather_cells_bound((w, h), len(maps), int(primitive == PRIMITIVE_MICROQUAD), budget_mode,
-                                       force, budget_max, blend, levels)
+                                       force, budget_max_of(o), blend, levels)
             chunks = 1 if light.is_delta else loops.chunk_count(worst, CHUNK_CELLS)
             if chunks == 1:
                 frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,

@@ -61,6 +61,9 @@
 #ifndef COVERAGE
 #define COVERAGE 0              // 1: coarse micro-occluders shrunk to their occluding share (see cover)
 #endif
+#ifndef SPLIT
+#define SPLIT 0                 // 1: coarse micro-occluders that backproject large are split (see gather_range)
+#endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
 #endif
@@ -82,6 +85,10 @@ uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per c
 uniform uint u_valid[BITS];     // per bitmask row: samples inside the light's shape
 #endif
 uniform float u_valid_count;
+#if SPLIT
+uniform float u_split;          // a coarse micro-occluder wider on the light than this share of it is split
+uniform int u_split_extra;      // at most this many finer micro-occluders per pixel and gather from splits
+#endif
 
 uniform sampler2D u_depth;      // layer 0 depth map (R32F), for delta lights
 uniform sampler2D u_hsm0;       // per layer: min/max pyramid (RG32F, power-of-two padded)
@@ -512,13 +519,17 @@ vec2 backproject(Pixel p, vec2 w, float z) {
 // Micropatch of cell c (level l): the cell's square at its (minimum) depth, parallel to the light. Gap
 // filling (GBP06): when the left (bottom) neighbour is an occluder too, the patch's left (bottom) edge is
 // extended to where that neighbour's right (top) edge backprojects, closing the gap between them. False
-// when the cell occludes nothing; else its light rectangle [a, b] and occluded fraction `area`.
-bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
+// when the cell occludes nothing; else its light rectangle [a, b] and occluded fraction `area`, and (SPLIT)
+// `whole`, the light rectangle of the whole cell before the refit and coverage shrink it (the split's test).
+bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
     float s = float(1 << l);
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if SPLIT
+    whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
+#endif
 #if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
 #endif
@@ -546,12 +557,15 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
 // Microrect of texel c (level l, §5.2): a micropatch over its own extent at its (minimum) depth; gap filling
 // as for micropatches, towards the left/bottom neighbour microrect when its extent reaches this one's. At
 // level 0 extent and depth are the texel's own, so this is exactly micropatch().
-bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
+bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
     vec4 ext;
     float z = rect_depth(layer, l, c, ext);
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
     if (!cell_occludes(p, z, p0, p1, l)) return false;
+#if SPLIT
+    whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
+#endif
 #if REFIT != REFIT_NONE
     if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
 #endif
@@ -581,7 +595,7 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
 // when all four are occluders. Area accumulation: the quad with its corners clamped to the light rectangle
 // (Fig. 6 left; watertight). Bitmask (and round lights): the axis-aligned rectangle through the midpoints of
 // the quad's edges (Fig. 6 right). Returns like micropatch.
-bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area) {
+bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
     float s = float(1 << l);
     vec2 v[4];
     area = 0.0;
@@ -755,7 +769,15 @@ Occlusion no_occlusion() {
 // `o`. One loop over a flat index, and the bitmask rows in a loop of constant length (which the compiler
 // unrolls): a software GL that ends a shader's loops after a fixed number of iterations in all (llvmpipe:
 // 65535) then sees one iteration per micro-occluder, and CHUNKED can bound what one dispatch asks for.
-void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o) {
+// OR the light rectangle [a, b] (occluded fraction `area`) into `o`: a macro, not a function, so that the
+// bitmask is not copied per micro-occluder (bitmask rows outside the span OR zero).
+#if BITS > 0
+#define ADD_OCCLUDER(o, a, b, area) { (o).area += (area); Span s_ = rect_span((a) * 0.5 + 0.5, (b) * 0.5 + 0.5); if (s_.rows.x < s_.rows.y) for (int r_ = 0; r_ < BITS; ++r_) (o).bits[r_] |= span_row(s_, r_); }
+#else
+#define ADD_OCCLUDER(o, a, b, area) { (o).area += (area); }
+#endif
+
+void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o, inout float count) {
     if (i1 <= i0) return;
     ivec2 first = (lo >> l) - QUAD_EXTRA, last = hi >> l;
     ivec2 n = last - first + 1;
@@ -763,24 +785,68 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
     // The first cell by division, the rest by stepping (integer division is slow on a CPU's vectors).
     int layer = i0 / per_layer, j = i0 - layer * per_layer;
     ivec2 c = first + ivec2(j % n.x, j / n.x);
+#if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
+    int extra = u_split_extra;
+#endif
     for (int i = i0; i < i1; ++i) {
         vec2 a, b;
         float area;
+        vec4 whole;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
-        bool hit = micropatch(p, layer, l, c, a, b, area);
+        bool hit = micropatch(p, layer, l, c, a, b, area, whole);
 #elif PRIMITIVE == PRIMITIVE_MICRORECT
-        bool hit = microrect(p, layer, l, c, a, b, area);
+        bool hit = microrect(p, layer, l, c, a, b, area, whole);
 #else
-        bool hit = microquad(p, layer, l, c, a, b, area);
+        bool hit = microquad(p, layer, l, c, a, b, area, whole);
 #endif
-        if (hit) {
-            o.area += area;
-#if BITS > 0
-            Span s = rect_span(a * 0.5 + 0.5, b * 0.5 + 0.5);
-            if (s.rows.x < s.rows.y)
-                for (int r = 0; r < BITS; ++r) o.bits[r] |= span_row(s, r);   // zero outside s.rows
-#endif
+#if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
+        // Near-field split (ours): a coarse micro-occluder stands for its texels only as far as its error
+        // (about its whole extent) is small on the light; backprojected, a cell grows as 1/(d − z), so next to
+        // the receiver (contact shadows, the ground at a wall's foot, a surface beside the receiver that the
+        // cell lifts above its horizon) one cell spans much of the light and its error is the penumbra. Such a
+        // cell (judged whole, before refit and coverage) is replaced by the micro-occluders of the level f
+        // whose cells are k = l − f halvings smaller, enough to bring it under u_split of the light's side:
+        // micropatches the 2^k × 2^k cells of level f inside it, microrects the level-f microrects whose
+        // reference texel lies in its extent (level 0: exactly its texels). One flat loop, no stack (a local
+        // array made every gather ~5× slower on llvmpipe); u_split_extra caps the parts per gather.
+        int k = 0;
+        if (hit && l > 0 && all(lessThan(whole.xy, vec2(1.0))) && all(greaterThan(whole.zw, vec2(-1.0)))) {
+            float wide = max(whole.z - whole.x, whole.w - whole.y) / (2.0 * u_split);
+            k = wide > 1.0 ? min(int(ceil(log2(wide))), l) : 0;
         }
+        ivec2 s0 = ivec2(0), s1 = ivec2(-1);
+        for (; k > 0; --k) {            // the finest level whose parts the cap still allows
+            int f = l - k;
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+            vec4 ext;
+            rect_depth(layer, l, c, ext);
+            s0 = (ivec2(ext.xy) + (1 << f) - 1) >> f;
+            s1 = (ivec2(ext.zw) + (1 << f) - 1 >> f) - 1;
+#else
+            s0 = c << k;
+            s1 = min(((c + 1) << k) - 1, ((u_map_size + (1 << f) - 1) >> f) - 1);
+#endif
+            ivec2 m = max(s1 - s0 + 1, ivec2(0));
+            if (m.x * m.y <= extra) break;
+        }
+        if (any(lessThan(s1, s0))) k = 0;       // no parts found: keep the micro-occluder whole
+        if (k > 0) {
+            int f = l - k;
+            int nx = s1.x - s0.x + 1, parts = nx * (s1.y - s0.y + 1);
+            extra -= parts;
+            count += float(parts);
+            for (int q = 0; q < parts; ++q) {
+                ivec2 jq = s0 + ivec2(q % nx, q / nx);
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+                bool h = microrect(p, layer, f, jq, a, b, area, whole);
+#else
+                bool h = micropatch(p, layer, f, jq, a, b, area, whole);
+#endif
+                if (h) ADD_OCCLUDER(o, a, b, area);
+            }
+        } else
+#endif
+        if (hit) ADD_OCCLUDER(o, a, b, area);
         if (++c.x > last.x) {
             c.x = first.x;
             if (++c.y > last.y) {
@@ -834,11 +900,11 @@ Occlusion gather(Pixel p, ivec2 lo, ivec2 hi, int l, inout float count, int slot
 #if CHUNKED
     Occlusion o = load_state(p.px, slot);
     int w0 = u_chunk * u_chunk_size - start;
-    gather_range(p, lo, hi, l, clamp(w0, 0, n), clamp(w0 + u_chunk_size, 0, n), o);
+    gather_range(p, lo, hi, l, clamp(w0, 0, n), clamp(w0 + u_chunk_size, 0, n), o, count);
     store_state(p.px, slot, o);
 #else
     Occlusion o = no_occlusion();
-    gather_range(p, lo, hi, l, 0, n, o);
+    gather_range(p, lo, hi, l, 0, n, o, count);
 #endif
     start += n;
     return o;
