@@ -128,30 +128,38 @@ def _box_planes():
 
 
 def test_a_convex_caster_cannot_shadow_its_own_surface_facing_the_lights_centre():
-    """A point on a convex object's face whose plane has the light's centre in front: every technique's
-    tangent-plane rule keeps the object (all behind that plane) from shadowing it, even where part of a wide
-    light lies behind the plane. A point on the face turned away from the centre can be shadowed by it."""
+    """A point on a convex object's face whose plane has the light's centre in front, seen from outside:
+    every technique's tangent-plane rule keeps the object (all behind that plane) from shadowing it, even
+    where part of a wide light lies behind the plane. Seen from inside (the wall of a room around the camera)
+    the object lies in front of the receiver's plane and may shadow it; so may it a point on the face turned
+    away from the centre."""
     normals, offsets = _box_planes()
-    light = stress.area_light((0.2, 0.0, 3.0), size=8.0)       # wider than the box: its edge is below z = 1
+    from dataclasses import replace
+    from penumbra.engine.core.snapshot import POINT
+    # a sphere light reaching below the top face's plane z = 1, its centre above it
+    light = replace(stress.area_light((0.2, 0.0, 3.0)), kind=POINT, radius=2.5)
     top = np.array([[0.1, 0.2, 1.0], [-0.45, 0.4, 1.0]])
-    assert lightview.faces_clear_light(light, normals, offsets, top, None, 1e-5)
-    side = np.array([[0.5, 0.0, 0.5]])                          # the +x face: the centre lies behind its plane
-    assert not lightview.faces_clear_light(light, normals, offsets, side, None, 1e-5)
-    beside = stress.area_light((1.5, 0.0, 3.0), size=8.0)       # now in front of it
-    assert lightview.faces_clear_light(beside, normals, offsets, side, None, 1e-5)
+    up, down = np.tile([0.0, 0.0, 1.0], (2, 1)), np.tile([0.0, 0.0, -1.0], (2, 1))
+    assert lightview.faces_clear_light(light, normals, offsets, top, None, up, 1e-5)
+    assert not lightview.faces_clear_light(light, normals, offsets, top, None, down, 1e-5)
+    assert not lightview.faces_clear_light(light, normals, offsets, top, None, None, 1e-5)
+    side, out = np.array([[0.5, 0.0, 0.5]]), np.array([[1.0, 0.0, 0.0]])
+    assert not lightview.faces_clear_light(light, normals, offsets, side, None, out, 1e-5)   # centre behind it
+    beside = replace(light, matrix=stress.area_light((1.5, 0.0, 3.0)).matrix)      # now in front of it
+    assert lightview.faces_clear_light(beside, normals, offsets, side, None, out, 1e-5)
     low = stress.area_light((3.0, 0.0, 0.5), size=0.2)           # beside the box: its -x face looks away
-    assert not lightview.faces_clear_light(low, normals, offsets, np.array([[-0.5, 0.0, 0.5]]), None, 1e-5)
+    assert not lightview.faces_clear_light(low, normals, offsets, np.array([[-0.5, 0.0, 0.5]]), None, -out, 1e-5)
 
 
 def test_a_convex_caster_shadows_a_point_off_it_unless_a_face_plane_parts_them_from_the_whole_light():
     normals, offsets = _box_planes()
     floor_point = np.array([[3.0, 0.0, 0.0]])
     above = stress.area_light((3.0, 0.0, 4.0), size=0.5)        # wholly beyond the +x face's plane, as the point
-    assert lightview.faces_clear_light(above, normals, offsets, floor_point, None, 1e-5)
+    assert lightview.faces_clear_light(above, normals, offsets, floor_point, None, None, 1e-5)
     wide = stress.area_light((3.0, 0.0, 4.0), size=6.0)         # reaches past that plane: the box may shadow
-    assert not lightview.faces_clear_light(wide, normals, offsets, floor_point, None, 1e-5)
+    assert not lightview.faces_clear_light(wide, normals, offsets, floor_point, None, None, 1e-5)
     across = stress.area_light((-3.0, 0.0, 1.0), size=0.5)      # the box between light and point
-    assert not lightview.faces_clear_light(across, normals, offsets, floor_point, None, 1e-5)
+    assert not lightview.faces_clear_light(across, normals, offsets, floor_point, None, None, 1e-5)
     # where the shadow ray leaves from counts too: a lifted point behind every plane facing the light
     lifted = np.array([[0.4, 0.0, 0.9]])
-    assert not lightview.faces_clear_light(above, normals, offsets, floor_point, lifted, 1e-5)
+    assert not lightview.faces_clear_light(above, normals, offsets, floor_point, lifted, None, 1e-5)

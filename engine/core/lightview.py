@@ -585,7 +585,8 @@ def receiver_sides(lights, flat: dict, convex: dict, xyz: np.ndarray, where: np.
 
 def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np.ndarray,
                             receivers: tuple, sides: ReceiverSides | None = None, points: np.ndarray | None = None,
-                            lifted: np.ndarray | None = None, convex: dict | None = None) -> tuple | None:
+                            lifted: np.ndarray | None = None, facing: np.ndarray | None = None,
+                            convex: dict | None = None) -> tuple | None:
     """World AABB of the caster objects that can shadow the lit receivers, or None.
 
     A flat caster (a ground plane at any tilt, a flattened object) shadows only what lies beyond its plane as
@@ -593,9 +594,9 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
     light's side of an axis-aligned plane, or when the visible pixels do (`sides.flat`), so a large floor does
     not stretch every light's map. A convex caster that holds the light and every visible pixel
     (`sides.enclosing`: a room, a dome around the scene) shadows nothing either. Where the receivers are
-    known point by point (`points`, N × 3, and where their shadow rays leave from, `lifted`, with the `convex`
-    casters' face planes: SceneSnapshot.convex_objects), a convex caster that can shadow none of them is left
-    out too (faces_clear_light).
+    known point by point (`points`, N × 3, where their shadow rays leave from, `lifted`, and their geometric
+    normals turned to the viewer, `facing`, with the `convex` casters' face planes: SceneSnapshot.convex_objects),
+    a convex caster that can shadow none of them is left out too (faces_clear_light).
     """
     r_corners = box_corners(*receivers)
     tol = 1e-6 * max(float(np.abs(r_corners).max()), 1.0)
@@ -622,7 +623,8 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
             if (side > 0 and d_lo >= -10.0 * tol) or (side < 0 and d_hi <= 10.0 * tol):
                 continue
         if points is not None and convex and int(index) in convex and faces_clear_light(
-                light, *convex[int(index)], points, lifted, 1e-5 * max(float(np.abs(object_bounds[index]).max()), 1.0)):
+                light, *convex[int(index)], points, lifted, facing,
+                1e-5 * max(float(np.abs(object_bounds[index]).max()), 1.0)):
             continue
         keep.append(index)
     if not keep:
@@ -631,13 +633,16 @@ def shadowing_caster_bounds(light: Light, object_bounds: np.ndarray, casters: np
 
 
 def faces_clear_light(light: Light, normals: np.ndarray, offsets: np.ndarray, points: np.ndarray,
-                      lifted: np.ndarray | None, tol: float, chunk: int = 1 << 21) -> bool:
+                      lifted: np.ndarray | None, facing: np.ndarray | None, tol: float,
+                      chunk: int = 1 << 21) -> bool:
     """Whether a convex object (the region n·p ≤ offset of its outward face planes) can shadow none of the
-    receiver `points` (N × 3; `lifted`: where their shadow rays leave from, or None) in a view of `light`:
-    - a point on the object's own surface (within `tol`) with the light's centre (a sun's direction) in front
-      of the face it lies on: every technique's tangent-plane rule (light_view.glsl receiver_depth_at) keeps
-      what lies behind that plane, the whole object, from shadowing it (the terminator band of a ball under a
-      stand-in for the part of a light it sees);
+    receiver `points` (N × 3; `lifted`: where their shadow rays leave from, or None; `facing`: their
+    geometric normals turned to the viewer, or None) in a view of `light`:
+    - a point on the object's own surface (within `tol`), seen from outside (its `facing` normal along the
+      face's outward one) with the light's centre (a sun's direction) in front of the face it lies on: every
+      technique's tangent-plane rule (light_view.glsl receiver_depth_at) keeps what lies behind that plane,
+      the whole object, from shadowing it (the terminator band of a ball under a stand-in for the part of a
+      light it sees). Seen from inside (a room's wall), the object lies in front of the receiver's plane;
     - any other point, and its lifted point, with a face plane that has it on or in front and the whole light
       strictly in front: the segment to any point of the light stays in that open half-space, which the
       object does not enter."""
@@ -662,10 +667,14 @@ def faces_clear_light(light: Light, normals: np.ndarray, offsets: np.ndarray, po
         clear = (d >= -tol).any(axis=1)
         if up is not None:
             clear &= (up[start:start + step] @ n_whole.T - o_whole >= -tol).any(axis=1)
-        if not clear.all():             # the rest must lie on the surface, facing the light's centre
-            rest = p[~clear]
-            d = rest @ normals.T - offsets
-            if not ((np.abs(d.max(axis=1)) <= tol) & centre[np.argmax(d, axis=1)]).all():
+        if not clear.all():             # the rest must lie on the surface, seen from outside, facing the centre
+            if facing is None:
+                return False
+            rest = ~clear
+            d = p[rest] @ normals.T - offsets
+            face = np.argmax(d, axis=1)
+            outside = np.einsum("ij,ij->i", np.asarray(facing, float)[start:start + step][rest], normals[face]) > 0.0
+            if not ((np.abs(d.max(axis=1)) <= tol) & centre[face] & outside).all():
                 return False
         start, step = start + step, max(step, chunk // len(normals))
     return True

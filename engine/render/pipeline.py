@@ -162,7 +162,8 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                                        stats, debug, points=points)
             else:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, parts, lit, lit_xyz,
-                                       lifted, irradiance, object_bounds, caster_objects, visibility, stats, debug)
+                                       lifted, geometric[:, :3], irradiance, object_bounds, caster_objects,
+                                       visibility, stats, debug)
         with t.stage("accumulate"):
             samplers = {"g_irradiance": irradiance, "u_visibility": visibility,
                         "u_visibility_rgb": rgb if rgb is not None else visibility}
@@ -299,7 +300,7 @@ def _face_parts(view, xyz, lifted, where, light=None) -> list:
 
 
 def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_casters, parts, lit, lit_xyz,
-                     lifted, irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
+                     lifted, facing, irradiance, object_bounds, caster_objects, out, stats: dict, debug: dict):
     """A light whose lit pixels do not fit one view (`parts`, ViewParts from _view_parts): its single view for
     the pixels it holds, one view per cube face for the rest (lightview.split_faces), a sun's rim views
     (rotations of its frame, as faces are) and a local light's stand-ins (lightview.local_rim_lights: area
@@ -339,6 +340,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                 casters = lightview.shadowing_caster_bounds(part_light, object_bounds, caster_objects, receivers,
                                                             frame.receiver_sides, points=lit_xyz[part.mask],
                                                             lifted=None if lifted is None else lifted[part.mask],
+                                                            facing=facing[part.mask],
                                                             convex=frame.geometry.convex_casters())
             if casters is not None:
                 with t.stage("light_view"):
