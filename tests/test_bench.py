@@ -173,3 +173,12 @@ def test_scaling_refuses_bad_caps_and_targets(tmp_path):
         bench.run_scaling(str(tmp_path), techniques=["HARD"], max_pixels=100, progress=False)
     with pytest.raises(ValueError, match="target samples 32 is not in the Cycles ladder 1,4,16,64,256"):
         bench.run_scaling(str(tmp_path), techniques=["HARD"], target_samples=32, progress=False)
+
+
+def test_matched_cycles_time_stays_within_the_ladder_when_a_noisy_rung_is_flattened():
+    """A Cycles time that comes out lower at more samples (a loaded machine) is raised to its predecessor's,
+    so the segment's ends are equal: exp(log t) alone gave 442.52194600267120 for t = 442.52194600267103,
+    past the ladder's own maximum (test_scaling_quick_smoke failed on it under load)."""
+    ladder = [(1, 70.09606700012228, 0.2), (4, 442.52194600267103, 0.1), (16, 172.9509550059447, 0.05)]
+    m = bench.matched_cycles(ladder, 0.07)
+    assert 4 <= m["spp"] <= 16 and m["time_ms"] == 442.52194600267103

@@ -763,8 +763,10 @@ def matched_cycles(ladder, error: float) -> dict:
                 "clamped": "above"}
     i = next(k for k in range(len(pts) - 1) if errs[k + 1] <= e)      # errs[i] > e ≥ errs[i + 1]
     u = math.log(errs[i] / e) / math.log(errs[i] / errs[i + 1])
-    return {"spp": float(math.exp(math.log(spp[i]) + u * math.log(spp[i + 1] / spp[i]))),
-            "time_ms": float(math.exp(math.log(times[i]) + u * math.log(times[i + 1] / times[i]))),
+
+    def between(lo, hi):            # log-log, kept within its two ends (exp∘log can round past the upper one)
+        return min(max(math.exp(math.log(lo) + u * math.log(hi / lo)), lo), hi)
+    return {"spp": float(between(spp[i], spp[i + 1])), "time_ms": float(between(times[i], times[i + 1])),
             "cycles_mae_shadow": e, "clamped": None}
 
 
