@@ -33,8 +33,19 @@ def bp(**options) -> RenderSettings:
 
 
 def render_stats(snap, settings):
+    """The render and its first light's statistics over all of that light's views (a curved receiver's
+    stand-ins give it several, each of which classifies only the pixels it owns)."""
     r = pipeline.render(snap, settings.with_(collect_stats=True))
-    return r, r.stats["per_light"][0]
+    views = [v for v in r.stats["per_light"] if v["light"] == r.stats["per_light"][0]["light"]]
+    pixels, backprojected = sum(v["pixels"] for v in views), sum(v["backprojected"] for v in views)
+    stats = dict(views[0], pixels=pixels, backprojected=backprojected,
+                 share_backprojected=backprojected / max(pixels, 1))
+    for share in ("share_lit", "share_umbra"):
+        stats[share] = sum(v[share] * v["pixels"] for v in views) / max(pixels, 1)
+    for mean in ("mean_count", "mean_level"):
+        stats[mean] = sum(v[mean] * v["backprojected"] for v in views) / max(backprojected, 1)
+    stats.pop("std_count", None)        # a spread does not add up over views
+    return r, stats
 
 
 # ------------------------------------------------------------------------------------------------------------
