@@ -348,7 +348,7 @@ def test_terminator_lift_moves_a_low_poly_sphere_towards_its_smooth_surface(smoo
 
 
 def test_a_view_of_a_split_light_computes_only_the_pixels_it_owns():
-    """While one of a light's several views is made (Frame.view_owner), common/pixel.glsl's pixel_lit takes
+    """While one of a light's several views is made (Frame.view_of), common/pixel.glsl's pixel_lit takes
     only the pixels that view owns, so every view's structures and visibility cost its own pixels, not the
     whole frame's (a ball's stand-ins: BACKPROJECTION on `balls` at 96² 12 s → 4 s a frame here, the
     Visibility the same). Checked through the lit-box reduction, which counts with pixel_lit."""
@@ -372,10 +372,10 @@ def test_a_view_of_a_split_light_computes_only_the_pixels_it_owns():
             owner_tex.write(owner.tobytes())
             buffer = frame.buffer(bytes(pipeline._BOUNDS_BYTES))
             boxes = []
-            for index in (None, 0, 1):
-                frame.view_owner = None if index is None else (owner_tex, index)
-                boxes.append(pipeline._lit_bounds(frame, irradiance, buffer)[0])
-            frame.view_owner = None
+            boxes.append(pipeline._lit_bounds(frame, irradiance, buffer)[0])
+            for index in (0, 1):
+                with frame.view_of(owner_tex, index):
+                    boxes.append(pipeline._lit_bounds(frame, irradiance, buffer)[0])
             return boxes, position[..., :3], owner
         finally:
             frame.release()

@@ -142,9 +142,7 @@ class Frame:
         self._from_pool: list = []      # pooled objects this frame took: given back by release()
         self._per_light: list = []
         self.progress = None            # pipeline.Progress, set by the pipeline
-        # (owner texture, index) while one of a light's several views is made: common/pixel.glsl's pixel_lit
-        # then takes only the pixels that view owns (render/pipeline.py _face_visibility)
-        self.view_owner: tuple | None = None
+        self.view_owner: tuple | None = None   # (owner texture, index) inside view_of
         self.bias_uniforms: dict = {}   # u_bias / u_normal_offset / u_terminator_offset, shared by every technique
         self.warnings: list[str] = list(snap.warnings)  # FrameResult.warnings
         self.stats: dict = {}           # counters techniques add (FrameResult.stats)
@@ -403,6 +401,17 @@ class Frame:
         return self.target((view.width, view.height), 1)
 
     # ---- compute passes --------------------------------------------------------------------------------
+    @contextmanager
+    def view_of(self, owner, index: int):
+        """While one of a light's several views is made or merged: every dispatch binds the owner texture
+        (per pixel, the index of the view that takes it) and `index`, and common/pixel.glsl's pixel_owned
+        (so pixel_lit) takes only that view's pixels."""
+        self.view_owner = (owner, index)
+        try:
+            yield
+        finally:
+            self.view_owner = None
+
     def dispatch(self, compute: str, uniforms: dict | None = None, samplers: dict | None = None,
                  images: dict | None = None, defines: dict | None = None, size=None, groups=None,
                  buffers: dict | None = None) -> None:

@@ -362,22 +362,19 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                                "(please report this scene).")
         if casters is not None:
             view_debug: dict = {}
-            frame.view_owner = (owner_tex, index)      # its structures and visibility for its own pixels only
-            try:
+            with frame.view_of(owner_tex, index):    # its structures and visibility for its own pixels only
                 rgb = _view_visibility(frame, technique, part_light, face_view, irradiance, receivers, casters,
                                        face_out, stats, view_debug, split=True, points=pts,
                                        share=float(part.mask.sum()) / max(len(part.mask), 1))
-            finally:
-                frame.view_owner = None
             owned = owner == index
             for name, array in view_debug.items():      # debug passes too come from the owning view
                 merged = face_debug.setdefault(name, np.zeros_like(array))
                 merged[owned] = array[owned]
         rgb_seen |= rgb is not None
-        with t.stage("visibility"):
-            frame.dispatch("render/merge_view.comp", {"u_face": index, "u_unshadowed": int(casters is None),
+        with t.stage("visibility"), frame.view_of(owner_tex, index):
+            frame.dispatch("render/merge_view.comp", {"u_unshadowed": int(casters is None),
                                                       "u_has_rgb": int(rgb is not None)},
-                           samplers={"u_owner": owner_tex, "u_view_visibility": face_out,
+                           samplers={"u_view_visibility": face_out,
                                      "u_view_rgb": rgb if rgb is not None else face_out},
                            images={0: out, 1: merged_rgb})
         index += 1

@@ -3,10 +3,8 @@
 // shadow its pixels writes 1.
 #include "common/pixel.glsl"
 
-uniform sampler2D u_owner;            // per pixel: index of the owning view, -1 where the light is not lit
 uniform sampler2D u_view_visibility;  // this view's V (R32F)
 uniform sampler2D u_view_rgb;         // this view's coloured V, when u_has_rgb
-uniform int u_face;
 uniform int u_unshadowed;
 uniform int u_has_rgb;
 layout(r32f, binding = 0) uniform image2D u_visibility;
@@ -14,7 +12,7 @@ layout(rgba32f, binding = 1) uniform image2D u_visibility_rgb;
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-    if (!pixel_in_image(px) || int(texelFetch(u_owner, px, 0).r) != u_face) return;
+    if (!pixel_in_image(px) || !pixel_owned(px)) return;     // the view's own pixels (Frame.view_of)
     float v = u_unshadowed == 1 ? 1.0 : texelFetch(u_view_visibility, px, 0).r;
     vec3 rgb = (u_unshadowed == 0 && u_has_rgb == 1) ? texelFetch(u_view_rgb, px, 0).rgb : vec3(v);
     imageStore(u_visibility, px, vec4(v));
