@@ -647,14 +647,7 @@ def faces_clear_light(light: Light, normals: np.ndarray, offsets: np.ndarray, po
       strictly in front: the segment to any point of the light stays in that open half-space, which the
       object does not enter."""
     normals, offsets = np.asarray(normals, float), np.asarray(offsets, float)
-    if light.kind == SUN:
-        towards = -(normals @ np.asarray(light.direction, float))
-        whole = towards > np.sin(min(light.angle / 2.0, np.pi / 2))
-        centre = towards > 0.0
-    else:
-        height = normals @ np.asarray(light.position, float) - offsets
-        whole = height > np.maximum(_light_reach(light, normals), 1e-9)
-        centre = height > 0.0
+    whole, centre = _light_in_front(light, normals, offsets)
     if not centre.any():
         return False
     pts = np.asarray(points, float).reshape(-1, 3)
@@ -703,13 +696,22 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
     return None
 
 
+def _light_in_front(light: Light, normals: np.ndarray, offsets: np.ndarray) -> tuple:
+    """Per plane n·p = offset (unit normals, F × 3): whether the whole light (its extent; a sun's cone of
+    directions) lies strictly in front of it, and whether its centre (a sun's direction) does."""
+    if light.kind == SUN:
+        towards = -(normals @ np.asarray(light.direction, float))
+        return towards > np.sin(min(light.angle / 2.0, np.pi / 2)), towards > 0.0
+    height = normals @ np.asarray(light.position, float) - offsets
+    return height > np.maximum(_light_reach(light, normals), 1e-9), height > 0.0
+
+
 def _light_outside(light: Light, normals: np.ndarray, offsets: np.ndarray) -> bool:
     """Whether the whole light (its extent included) lies strictly outside the convex region n·p ≤ offset:
     beyond one of its face planes. A sun lies outside every bounded region (its rays come from infinity)."""
     if light.kind == SUN:
         return True
-    return bool(np.any(normals @ np.asarray(light.position, float) - offsets > np.maximum(
-        _light_reach(light, normals), 1e-9)))
+    return bool(np.any(_light_in_front(light, normals, offsets)[0]))
 
 
 def _light_inside(light: Light, normals: np.ndarray, offsets: np.ndarray) -> bool:
