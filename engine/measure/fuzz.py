@@ -203,7 +203,6 @@ def _torus(bm, major=1.0, minor=0.3, seg_major=48, seg_minor=12):
 def primitive_mesh(name: str, primitive: str):
     """A bpy mesh of Blender's primitive of that name, built with bmesh (2 m across, like Add > Mesh)."""
     import bmesh
-    import bpy
     bm = bmesh.new()
     if primitive == "CUBE":
         bmesh.ops.create_cube(bm, size=2.0)
@@ -222,10 +221,8 @@ def primitive_mesh(name: str, primitive: str):
         bmesh.ops.create_monkey(bm)
     else:
         raise ValueError(f"unknown primitive {primitive!r}")
-    me = bpy.data.meshes.new(name)
-    bm.to_mesh(me)
-    bm.free()
-    return me
+    from .scenes import mesh_from_bmesh
+    return mesh_from_bmesh(bm, name)
 
 
 def build(params: dict, resolution=RESOLUTION):

@@ -97,6 +97,27 @@ def black_world(name: str) -> bpy.types.World:
     return world
 
 
+def mesh_from_bmesh(bm, name: str) -> bpy.types.Mesh:
+    """A new mesh of `bm`'s vertices and faces, the faces in an order fixed by their vertices (and frees
+    `bm`). bmesh's primitive operators hand out their faces in an order that changes from run to run (it
+    follows memory addresses): the triangles' order and so every float sum over them changed between two
+    builds of the same scene, errors moved in their last digits, and the Cycles reference cache, which hashes
+    the face corners, missed on every run. Faces are sorted by their vertex lists read from the lowest index;
+    each keeps its own corner order, which decides how a quad is split into triangles."""
+    bm.verts.index_update()
+    verts = [tuple(v.co) for v in bm.verts]
+    faces = [[v.index for v in face.verts] for face in bm.faces]
+    bm.free()
+
+    def from_lowest(ring):
+        first = ring.index(min(ring))
+        return ring[first:] + ring[:first]
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], sorted(faces, key=from_lowest))
+    me.update()
+    return me
+
+
 def _link(scene, obj):
     scene.collection.objects.link(obj)
     return obj
@@ -235,11 +256,9 @@ def _build_suzanne(scene):
     """Suzanne (subdivision level 1, smooth) floating over the ground."""
     _add_ground(scene)
     occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
-    me = bpy.data.meshes.new("Suzanne")
     bm = bmesh.new()
     bmesh.ops.create_monkey(bm)
-    bm.to_mesh(me)
-    bm.free()
+    me = mesh_from_bmesh(bm, "Suzanne")
     me.shade_smooth()
     me.materials.append(occ)
     obj = _link(scene, bpy.data.objects.new("Suzanne", me))
@@ -258,11 +277,9 @@ def _build_balls(scene):
     balls of different layers overlap partially: overlapping occluders at different depths."""
     _add_ground(scene)
     occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
-    me = bpy.data.meshes.new("Ball")
     bm = bmesh.new()
     bmesh.ops.create_uvsphere(bm, u_segments=32, v_segments=16, radius=0.2)
-    bm.to_mesh(me)
-    bm.free()
+    me = mesh_from_bmesh(bm, "Ball")
     me.shade_smooth()
     me.materials.append(occ)
     spacing = 0.5
@@ -310,12 +327,10 @@ def _build_contact(scene):
     verts, faces = _box_geometry((0.0, 0.0, 0.5), (1.0, 1.0, 1.0))
     cube = _mesh_object(scene, "Cube", verts, faces, occ)
     cube.matrix_world = Matrix.Translation((-0.4, 0.0, 0.0)) @ Matrix.Rotation(math.radians(30), 4, "Z")
-    me = bpy.data.meshes.new("Cylinder")
     bm = bmesh.new()
     bmesh.ops.create_cone(bm, cap_ends=True, cap_tris=False, segments=48, radius1=0.3, radius2=0.3,
                           depth=1.4, matrix=Matrix.Translation((0.0, 0.0, 0.7)))
-    bm.to_mesh(me)
-    bm.free()
+    me = mesh_from_bmesh(bm, "Cylinder")
     me.materials.append(occ)
     cyl = _link(scene, bpy.data.objects.new("Cylinder", me))
     cyl.location = (0.7, 0.8, 0.0)
@@ -439,11 +454,9 @@ def _add_sun(scene, direction_to_sun, angle, *, reference_normal=(0.0, 0.0, 1.0)
 
 
 def _uv_sphere_mesh(name, radius, material, u=32, v=16):
-    me = bpy.data.meshes.new(name)
     bm = bmesh.new()
     bmesh.ops.create_uvsphere(bm, u_segments=u, v_segments=v, radius=radius)
-    bm.to_mesh(me)
-    bm.free()
+    me = mesh_from_bmesh(bm, name)
     me.shade_smooth()
     me.materials.append(material)
     return me
@@ -506,7 +519,6 @@ def _build_flattened(scene):
     Their matrices are singular, yet Cycles shadows them."""
     _add_ground(scene)
     occ = diffuse_material("OccluderMaterial", OCCLUDER_RGB)
-    me = bpy.data.meshes.new("Torus")
     bm = bmesh.new()
     segments, sides, big, small = 32, 12, 0.6, 0.2
     rings = []
@@ -522,8 +534,7 @@ def _build_flattened(scene):
         for j in range(sides):
             a, b = rings[i], rings[(i + 1) % segments]
             bm.faces.new((a[j], b[j], b[(j + 1) % sides], a[(j + 1) % sides]))
-    bm.to_mesh(me)
-    bm.free()
+    me = mesh_from_bmesh(bm, "Torus")
     me.shade_smooth()
     me.materials.append(occ)
     torus = _link(scene, bpy.data.objects.new("Torus", me))
