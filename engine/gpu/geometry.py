@@ -132,17 +132,39 @@ class SceneGeometry:
     def object_bounds(self) -> np.ndarray:
         raise NotImplementedError
 
+    def culling_snapshot(self) -> SceneSnapshot | None:
+        """The scene's triangles in world space, as the facts below are read from (None: none known)."""
+        return None
+
+    def _fact(self, name: str, read):
+        """One culling fact, read once (until forget_facts) from culling_snapshot(), itself taken once."""
+        facts = self.__dict__.setdefault("_facts", {})
+        if name not in facts:
+            if "_facts_from" not in self.__dict__:
+                self._facts_from = self.culling_snapshot()
+            snap = self._facts_from
+            facts[name] = read(snap) if snap is not None and snap.triangle_count else {}
+        return facts[name]
+
+    def forget_facts(self) -> None:
+        self.__dict__.pop("_facts", None)
+        self.__dict__.pop("_facts_from", None)
+
     def flat_objects(self) -> dict:
-        """Flat objects' planes (SceneSnapshot.flat_objects); none known."""
-        return {}
+        """Flat objects' planes (SceneSnapshot.flat_objects)."""
+        return self._fact("flat", lambda snap: snap.flat_objects())
 
     def convex_objects(self) -> dict:
-        """Convex objects' face planes (SceneSnapshot.convex_objects); none known."""
-        return {}
+        """Convex objects' face planes (SceneSnapshot.convex_objects); only those that can hold a light
+        matter (lightview.receiver_sides)."""
+        def read(snap):
+            lights = [light.position for light in snap.lights if light.kind != SUN]
+            return snap.convex_objects(around=lights, bounds=self.object_bounds()) if lights else {}
+        return self._fact("convex", read)
 
     def convex_casters(self) -> dict:
-        """Convex objects' face planes, whatever they hold (SceneSnapshot.convex_casters); none known."""
-        return {}
+        """Convex objects' face planes, whatever they hold (SceneSnapshot.convex_casters)."""
+        return self._fact("convex_casters", lambda snap: snap.convex_casters)
 
     def render(self, ctx, prog, role: str, objects: frozenset | None = None, position_only: bool = False):
         """Draw `role` ("receiver" or "caster"), optionally only the given object indices, with `prog`."""
@@ -192,7 +214,7 @@ class SoupGeometry(SceneGeometry):
         self.has_casters = bool(self._masks["caster"].any())
         self.has_smooth = snap.has_smooth_triangles
         self._ibos: dict = {}
-        self._bounds = self._flat = self._convex = None
+        self._bounds = None
         self.nbytes = self.vbo.size
         self.uv = None
         self.maps, self._images = [], []
@@ -224,20 +246,8 @@ class SoupGeometry(SceneGeometry):
             self._bounds = self._snap.object_bounds()
         return self._bounds
 
-    def flat_objects(self):
-        if self._flat is None:
-            self._flat = self._snap.flat_objects()
-        return self._flat
-
-    def convex_objects(self):
-        if self._convex is None:        # only those that can hold a light matter (receiver_sides)
-            lights = [light.position for light in self._snap.lights if light.kind != SUN]
-            self._convex = (self._snap.convex_objects(around=lights, bounds=self.object_bounds())
-                            if lights else {})
-        return self._convex
-
-    def convex_casters(self):
-        return self._snap.convex_casters
+    def culling_snapshot(self):
+        return self._snap
 
     def release(self):
         self.vbo.release()

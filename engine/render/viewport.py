@@ -36,6 +36,8 @@ class ViewportGeometry(SceneGeometry):
         self._textured: dict[tuple, tuple] = {}    # key → (uv buffer, [(map or None, first, count)], GL objects)
         self._instances: list[Instance] = []
         self._objects: list[ObjectInfo] = []
+        self._pieces: dict = {}
+        self._lights: list = []
         self.uploads: dict[tuple, int] = {}        # key → times uploaded (tests count these)
 
     def apply(self, state: SceneState) -> None:
@@ -60,7 +62,9 @@ class ViewportGeometry(SceneGeometry):
                 self._textured[key] = (uv, ranges, [*maps, *images, uv])
             self.uploads[key] = self.uploads.get(key, 0) + 1
         self._instances, self._objects = state.instances, state.objects
+        self._pieces, self._lights = state.pieces, state.lights
         self.has_casters = any(self._objects[i.object_index].caster for i in self._instances)
+        self.forget_facts()             # floors, rooms and convex casters as this state has them
 
     def draws(self, role, objects=None):
         out = []
@@ -89,6 +93,29 @@ class ViewportGeometry(SceneGeometry):
         textured = self._textured.pop(key, None)
         for obj in (textured[2] if textured is not None else ()):
             obj.release()
+
+    def culling_snapshot(self) -> SceneSnapshot:
+        """The instances' triangles in world space on the CPU, corners ordered as the final render's extraction
+        orders them (a mirrored instance's corners 1 and 2 swapped, so that its faces stay counter-clockwise
+        from outside): what the final render's culling reads (floors, rooms and convex casters left out of
+        the light views that need not hold them), so that the viewport leaves out what it does. Built when a
+        frame first asks after a sync, not per redraw."""
+        positions, object_id = [], []
+        for inst in self._instances:
+            piece = self._pieces[inst.key]
+            m = np.asarray(inst.matrix, np.float64)
+            world = piece.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+            if np.linalg.det(m[:3, :3]) < 0.0:
+                world = world[:, [0, 2, 1]]
+            positions.append(world.astype(np.float32))
+            object_id.append(np.full(len(world), inst.object_index, np.int32))
+        geometry = SceneSnapshot.empty_geometry()
+        if positions:
+            p = np.concatenate(positions)
+            geometry.update(positions=p, normals=np.zeros_like(p), object_id=np.concatenate(object_id),
+                            albedo=np.zeros((len(p), 3), np.float32))
+        return SceneSnapshot(objects=self._objects, lights=self._lights, camera=None, name="viewport",
+                             **geometry)
 
     def object_bounds(self):
         out = np.empty((len(self._objects), 2, 3))
@@ -134,6 +161,7 @@ class ViewportFrame:
     ms: float                   # GPU-thread time of this frame
     timings: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)   # FrameResult.stats: views per light, lights left out, …
 
 
 class ViewportSession:
@@ -226,7 +254,8 @@ class ViewportSession:
             self.cancelled += 1
             return None
         frame = ViewportFrame(result.passes, camera.width, camera.height, coarse, request,
-                              (time.perf_counter() - start) * 1000.0, result.timings, result.warnings)
+                              (time.perf_counter() - start) * 1000.0, result.timings, result.warnings,
+                              result.stats)
         with self._lock:
             if request == self._request and (self.latest is None or self.latest.request != request
                                              or not frame.coarse):
