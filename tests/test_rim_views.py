@@ -205,3 +205,32 @@ def test_a_lights_views_share_its_ssm_work_budget():
     print(r.stats["views"], r.stats["ssm_work"], r.stats["ssm_map_size"], r.warnings)
     assert r.stats["views"] > 1
     assert r.stats["ssm_work"] <= budget * 1e6
+
+
+@pytest.mark.parametrize("technique", ["HARD", "PCSS", "BACKPROJECTION", "PVSM"])
+def test_a_part_views_map_is_only_as_fine_as_its_pixels_need(ball_scene, technique, monkeypatch):
+    """Leave out what the scene does not need: a stand-in's view holds a few pixels of the band, and its map
+    at the light's full size (1024²) cost as much as the light's own view. Sized to the pixels it holds
+    (lightview.needed_map_size: PART_MAP_TEXELS_PER_PIXEL texels across a pixel there), its maps cover far
+    fewer texels at the same error against Cycles. Here every stand-in is built (no convex caster known);
+    measured at 64²: 4.96 M texels over 7 views → 1.13 M, mae_shadow the same to every digit for HARD (0.1054),
+    PCSS (0.0537), BACKPROJECTION (0.0363) and PVSM (0.0415)."""
+    from dataclasses import replace as copy
+
+    from penumbra.engine.core import lightview
+    from penumbra.engine.core.settings import RenderSettings
+    from penumbra.engine.measure.metrics import compare
+    from penumbra.engine.render import pipeline
+    snap, cyc = ball_scene
+    unknown = copy(snap)
+    unknown.__dict__["convex_casters"] = {}
+    settings = RenderSettings(antialiasing=False).with_(technique=technique)
+    sized = pipeline.render(unknown, settings)
+    monkeypatch.setattr(lightview, "needed_map_size", lambda view, points, camera, size: size)
+    full = pipeline.render(unknown, settings)
+    assert sized.stats["views"] == full.stats["views"] > 2
+    errors = [compare(r.passes["Visibility"][..., 0], cyc.ref.visibility, cyc.ref.mask)["mae_shadow"]
+              for r in (sized, full)]
+    print(technique, sized.stats["view_texels"], full.stats["view_texels"], errors)
+    assert sized.stats["view_texels"] < 0.5 * full.stats["view_texels"]
+    assert errors[0] <= errors[1] + 2e-3

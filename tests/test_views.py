@@ -194,3 +194,32 @@ def test_the_rim_views_gate_uses_the_suns_frame_axis():
         pts = rng.uniform(-2, 2, (50, 3))
         view = lightview.fit(light, (pts.min(axis=0), pts.max(axis=0)), None, 64)
         np.testing.assert_allclose(np.asarray(view.view)[2, :3], -light.direction, atol=1e-9)
+
+
+def test_a_part_views_map_is_as_fine_as_its_pixels_need():
+    """needed_map_size: PART_MAP_TEXELS_PER_PIXEL texels across the pixel footprint at every point a part
+    view holds, from the camera's tangent per pixel and the point's depths; clamped to [PART_MAP_LEAST,
+    size]."""
+    from penumbra.engine.core.snapshot import Camera
+    light = _light(position=(0.0, 0.0, 4.0))
+    pts = np.array([[0.3, 0.2, 0.0], [-0.4, 0.1, 0.0], [0.0, -0.3, 0.0]])
+    view = lightview.fit(light, (pts.min(axis=0), pts.max(axis=0)), None, 1024)
+    eye = np.array([0.0, -6.0, 3.0])
+    proj = stress.perspective(np.radians(40.0), 1.0, 0.1, 100.0)
+    camera = Camera("C", np.linalg.inv(stress.look_at(eye, (0.0, 0.0, 0.0))), proj, 128, 128)
+    per_pixel = 2.0 / (proj[1, 1] * 128)
+    x0, x1, y0, y1 = view.window
+    cam_depth = -(np.c_[pts, np.ones(3)] @ camera.view[2])
+    light_depth = -(np.c_[pts, np.ones(3)] @ view.view[2])
+    expected = np.max(lightview.PART_MAP_TEXELS_PER_PIXEL * max(x1 - x0, y1 - y0) * light_depth
+                      / (cam_depth * per_pixel))
+    got = lightview.needed_map_size(view, pts, camera, 1024)
+    assert got == max(lightview.PART_MAP_LEAST, int(np.ceil(expected))), (got, expected)
+    assert got < 1024                                   # a few pixels' part at 128²: far from the full size
+    # a finer image needs finer texels, up to the size asked for
+    fine = Camera("C", camera.view, proj, 4096, 4096)
+    assert got < lightview.needed_map_size(view, pts, fine, 1024) <= 1024
+    assert lightview.needed_map_size(view, pts, Camera("C", camera.view, proj, 1 << 16, 1 << 16), 1024) == 1024
+    # and a coarse one no less than PART_MAP_LEAST
+    assert lightview.needed_map_size(view, pts, Camera("C", camera.view, proj, 4, 4), 1024) == \
+        lightview.PART_MAP_LEAST

@@ -221,6 +221,7 @@ def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers
     with t.stage("visibility"):
         technique.visibility(frame, lc, out)
     stats["views"] = stats.get("views", 0) + 1
+    stats["view_texels"] = stats.get("view_texels", 0) + view.width * view.height     # what its maps cover
     if lc.stats:
         stats.setdefault("per_light", []).append({"light": light.name, **lc.stats})
     _keep_max(debug, lc.debug)
@@ -344,8 +345,15 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                                                             convex=frame.geometry.convex_casters())
             if casters is not None:
                 with t.stage("light_view"):
-                    face_view = lightview.fit(part_light, receivers, casters, frame.settings.shadow_map_size,
-                                              frame=part.frame, face=part.rotation, receiver_points=pts)
+                    size = frame.settings.shadow_map_size
+                    face_view = lightview.fit(part_light, receivers, casters, size, frame=part.frame,
+                                              face=part.rotation, receiver_points=pts)
+                    # a part's map only as fine as the pixels it holds need (the light's own view keeps the
+                    # size the settings ask for)
+                    needed = lightview.needed_map_size(face_view, lit_xyz[part.mask], frame.snap.camera, size)
+                    if needed < size:
+                        face_view = lightview.fit(part_light, receivers, casters, needed, frame=part.frame,
+                                                  face=part.rotation, receiver_points=pts)
                     more = []
                     if face_view.clamped and part.light is not None and part.rotation is None:
                         more = _face_parts(face_view, lit_xyz, lifted, part.mask, light=part.light)

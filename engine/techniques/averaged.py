@@ -445,7 +445,7 @@ class AveragedMaps(Technique):
     def _samples(frame, lc, offsets, relative=None) -> list:
         """(view, sample position, emission axis, relative weight) per light sample: each map's view keeps the
         light's axes and is refitted from the sample point (a sun's turned towards its sample direction)."""
-        s, light = frame.settings, lc.light
+        light = lc.light
         samples = []
         # The lit points, where known, bound each sample's window tighter than their box, whose corners can
         # straddle a sample's plane where no lit point does (lightview.fit); their grid cells' corners, so
@@ -457,12 +457,12 @@ class AveragedMaps(Technique):
             emit = light.direction
             if light.kind == SUN:
                 tilted = tilted_sun(light, offset)
-                view = lightview.fit(tilted, lc.receivers, lc.casters, s.shadow_map_size, receiver_points=points)
+                view = lightview.fit(tilted, lc.receivers, lc.casters, lc.view.size, receiver_points=points)
                 sample_world, emit = light.position, tilted.direction
             else:
                 local = np.array([offset[0], offset[1], offset[2] if len(offset) > 2 else 0.0])
                 # A cube face keeps its turn: every sample's map looks the way the face looks.
-                view = lightview.fit(light, lc.receivers, lc.casters, s.shadow_map_size, origin_local=local,
+                view = lightview.fit(light, lc.receivers, lc.casters, lc.view.size, origin_local=local,
                                      frame=lc.view.frame, face=lc.view.face, receiver_points=points)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
             samples.append((view, sample_world, emit, 1.0 if relative is None else float(relative[i])))
