@@ -123,9 +123,12 @@ void main() {
         // point-like light) is one hard edge in every map: there the offset's texel, looking from above the
         // surface, keeps a caster at the receiver's foot from being missed by a texel ray that runs under it
         // into the receiver's own plane (tests/test_grazing_contact.py), and a crease's neighbouring face
-        // from shadowing it. The fifth: 9166 with a texel, half a texel, a fifth gave 0.042, 0.039, 0.028.
+        // from shadowing it. The fifth: 9166's monkey (tests/test_grazing_offset.py) with a penumbra limit of
+        // a texel, half a texel, a fifth: mae_shadow 0.042, 0.039, 0.028.
         float extent_over_distance = u_light_ortho == 1 ? u_light_extent
                                                         : u_light_extent / max(distance(s.position.xyz, p), 1e-30);
+        // a caster Δ in front of the receiver casts a penumbra 2·extent·Δ/d wide: under a fifth of a texel
+        // while Δ < contact
         float contact = 0.1 * texel_world(max(r.map.z, 0.0)) / max(extent_over_distance, 1e-30);
         vec2 offset_at = r.map.xy;
         r.map.xy = map_coords(r.start).xy;
