@@ -325,6 +325,18 @@ def tilted_sun(light: Light, offset: np.ndarray) -> Light:
     return replace(light, matrix=m)
 
 
+def light_extent(light: Light) -> float:
+    """The light's smallest half extent (metres; a sun's tan of its half angle; 0 for a point-like light):
+    accumulate.comp's measure of how wide a caster's penumbra is against a texel."""
+    if light.is_delta:
+        return 0.0
+    if light.kind == AREA:
+        return min(light.size_x, light.size_y) / 2.0
+    if light.kind == SUN:
+        return float(np.tan(min(light.angle / 2.0, np.radians(89.0))))
+    return float(light.radius)
+
+
 class AveragedMaps(Technique):
     identifier = "REFERENCE"
     label = "Averaged shadow maps"
@@ -384,6 +396,7 @@ class AveragedMaps(Technique):
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
         spot = spot_uniforms(light)
+        spot["u_light_extent"] = light_extent(light)
         true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
         soft_disk = light.kind in (POINT, SPOT) and light.radius > 0.0 and light.use_soft_falloff

@@ -60,6 +60,7 @@ struct Receiver {
     float bias;
     bool through_surface;
     float own_plane;    // dot(normal, point) of the receiver's own surface (before any lift or offset)
+    vec3 start;         // the light-local point the shadow ray leaves from: local before the normal offset
 };
 
 Receiver make_receiver(vec3 p, vec3 ng) {
@@ -70,6 +71,7 @@ Receiver make_receiver(vec3 p, vec3 ng) {
     float cos_t = clamp(abs(dot(r.normal, to_light)), 1e-3, 1.0);
     float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
     float texel = texel_world(max(-l.z, 0.0));
+    r.start = l;
     r.local = l + r.normal * (u_normal_offset * texel);
     r.map = map_coords(r.local);
     r.bias = u_bias * texel * (0.5 + tan_t);
