@@ -193,3 +193,28 @@ def test_the_viewport_leaves_out_what_the_final_render_does(name):
     assert frame.stats["lights_unshadowed"] == final.stats["lights_unshadowed"]
     diff = np.abs(frame.passes["Visibility"] - final.passes["Visibility"])
     assert np.mean(diff > 1e-3) < 0.01, float(np.mean(diff > 1e-3))
+
+
+def test_a_coarse_frame_leaves_working_out_the_culling_facts_to_the_full_one():
+    """After a sync (an object dragged) the facts are forgotten; a coarse frame takes the ones known, else
+    none, and does not build the world-space snapshot they are read from (a few hundred ms on city)."""
+    from penumbra.engine.gpu.geometry import SceneGeometry
+    from penumbra.tests.synthetic import quad
+    from penumbra.engine.core.snapshot import ObjectInfo, SceneSnapshot
+    floor = quad((0.0, 0.0, 1.0), 2.0)
+    built = []
+
+    class Geometry(SceneGeometry):
+        def culling_snapshot(self):
+            built.append(1)
+            return SceneSnapshot(floor, np.zeros_like(floor), np.zeros(len(floor), np.int32),
+                                 np.zeros((len(floor), 3), np.float32), [ObjectInfo("Floor")], [], None)
+    g = Geometry()
+    g.reads_facts = False
+    assert g.flat_objects() == {} and built == []
+    g.reads_facts = True
+    assert 0 in g.flat_objects() and built == [1]
+    g.reads_facts = False
+    assert 0 in g.flat_objects() and built == [1]          # known already: taken
+    g.forget_facts()
+    assert g.flat_objects() == {} and built == [1]

@@ -136,10 +136,16 @@ class SceneGeometry:
         """The scene's triangles in world space, as the facts below are read from (None: none known)."""
         return None
 
+    # Whether a frame may spend time working the facts out (a viewport's coarse frame, drawn while an object
+    # is dragged, takes those known already, else none)
+    reads_facts = True
+
     def _fact(self, name: str, read):
         """One culling fact, read once (until forget_facts) from culling_snapshot(), itself taken once."""
         facts = self.__dict__.setdefault("_facts", {})
         if name not in facts:
+            if not self.reads_facts:
+                return {}
             if "_facts_from" not in self.__dict__:
                 self._facts_from = self.culling_snapshot()
             snap = self._facts_from

@@ -248,6 +248,10 @@ class ViewportSession:
                              name=self.state.name, warnings=list(self.state.warnings),
                              images=self.state.images, **SceneSnapshot.empty_geometry())
         start = time.perf_counter()
+        # A sync (an object dragged) forgets the culling facts; working them out again costs up to a few
+        # hundred ms on a large scene (SceneGeometry.culling_snapshot), which the coarse frame leaves to the
+        # full one
+        self._geometry.reads_facts = not coarse
         try:
             result = pipeline.render_job(worker, job, snap, settings, geometry=self._geometry)
         except Cancelled:
