@@ -177,8 +177,8 @@ def test_the_viewport_leaves_out_what_the_final_render_does(name):
     """The final render leaves floors, rooms and convex casters out of the light views that need not hold
     them (SceneSnapshot.flat_objects, convex_objects, convex_casters). The viewport read none of these (its
     meshes live in object space on the GPU) and built every view the final render leaves out: on `tilted`
-    at 96² 8 views against 3, on `room` 3 against 1. It now reads them from its instances in world space,
-    once per sync: the same views, the same image."""
+    at 96² (HARD) 6 views against 3, on `room` 6 against 1. It now reads them from its instances in world
+    space, once per sync: the same views, the same image."""
     sc = scenes.build(name, resolution=(96, 96))
     depsgraph = bpy.context.evaluated_depsgraph_get()
     snap = extract(depsgraph, sc)
