@@ -46,6 +46,12 @@ class LightView:
         """Texels along the longer side: the map size the view was fitted with."""
         return max(self.width, self.height)
 
+    def resized(self, size: int) -> "LightView":
+        """The same view with `size` texels along its window's longer side (fit's map size only shapes the
+        map: the window, depths and matrices do not depend on it)."""
+        width, height = _map_shape(self.window, size)
+        return replace(self, width=width, height=height)
+
     def texel_size(self) -> tuple[float, float]:
         """Texel footprint in window units: tangent per texel (perspective) or metres per texel (ortho)."""
         x0, x1, y0, y1 = self.window
@@ -762,9 +768,9 @@ PART_MAP_LEAST = 64
 def needed_map_size(view: LightView, points: np.ndarray, camera, size: int) -> int:
     """The map size (texels along the longer side, at most `size`) at which `view`'s texels cover at most
     1 / PART_MAP_TEXELS_PER_PIXEL of the camera pixel across at each of `points` (world, N × 3): finer
-    texels than that no longer move a shadow edge the pixel shows. Both footprints are taken across, as if seen head on
-    (the pixel's: its depth times the camera's tangent per pixel; the texel's: its tangent times the depth
-    from the light, or metres for a sun), which errs on the fine side. For the views that hold a few pixels
+    texels than that no longer move a shadow edge the pixel shows. Both footprints are taken across, as if
+    seen head on (the pixel's: its depth times the camera's tangent per pixel; the texel's: its tangent times
+    the depth from the light, or metres for a sun), which errs on the fine side. For the views that hold a few pixels
     of a light (stand-ins, cube faces, a sun's rim views): built at the full size, each cost as much as the
     light's own view for a handful of pixels."""
     pts = np.asarray(points, np.float64).reshape(-1, 3)
@@ -772,14 +778,14 @@ def needed_map_size(view: LightView, points: np.ndarray, camera, size: int) -> i
         return min(size, PART_MAP_LEAST)
     p = np.asarray(camera.projection, np.float64)
     per_pixel = min(2.0 / (abs(p[0, 0]) * camera.width), 2.0 / (abs(p[1, 1]) * camera.height))
-    homo = np.c_[pts, np.ones(len(pts))]
     if camera.is_ortho:
         pixel = np.full(len(pts), per_pixel)
     else:
-        pixel = np.maximum(-(homo @ np.asarray(camera.view, np.float64)[2]), 1e-9) * per_pixel
+        pixel = np.maximum(-to_local(np.asarray(camera.view, np.float64), pts)[:, 2], 1e-9) * per_pixel
     x0, x1, y0, y1 = view.window
     extent = max(x1 - x0, y1 - y0)
-    texel_depth = 1.0 if view.is_ortho else np.maximum(-(homo @ np.asarray(view.view, np.float64)[2]), 1e-9)
+    texel_depth = 1.0 if view.is_ortho else np.maximum(-to_local(np.asarray(view.view, np.float64), pts)[:, 2],
+                                                       1e-9)
     need = float(np.max(PART_MAP_TEXELS_PER_PIXEL * extent * texel_depth / np.maximum(pixel, 1e-30)))
     if not np.isfinite(need):
         return size

@@ -352,8 +352,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                     # size the settings ask for)
                     needed = lightview.needed_map_size(face_view, lit_xyz[part.mask], frame.snap.camera, size)
                     if needed < size:
-                        face_view = lightview.fit(part_light, receivers, casters, needed, frame=part.frame,
-                                                  face=part.rotation, receiver_points=pts)
+                        face_view = face_view.resized(needed)
                     more = []
                     if face_view.clamped and part.light is not None and part.rotation is None:
                         more = _face_parts(face_view, lit_xyz, lifted, part.mask, light=part.light)
