@@ -815,11 +815,13 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
             k = wide > 1.0 ? min(int(ceil(log2(wide))), l) : 0;
         }
         ivec2 s0 = ivec2(0), s1 = ivec2(-1);
+#if PRIMITIVE == PRIMITIVE_MICRORECT
+        vec4 ext;                       // the microrect's extent, which its parts at every level lie in
+        if (k > 0) rect_depth(layer, l, c, ext);
+#endif
         for (; k > 0; --k) {            // the finest level whose parts the cap still allows
             int f = l - k;
 #if PRIMITIVE == PRIMITIVE_MICRORECT
-            vec4 ext;
-            rect_depth(layer, l, c, ext);
             s0 = (ivec2(ext.xy) + (1 << f) - 1) >> f;
             s1 = (ivec2(ext.zw) + (1 << f) - 1 >> f) - 1;
 #else
