@@ -369,12 +369,97 @@ def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
     return e
 
 
-def irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """Unoccluded irradiance (N,3) float64 RGB at `points` (N,3) with unit `normals` (N,3)."""
+BAND_PSI, BAND_THETA = 6, 8     # glsl/shading/irradiance.glsl's band quadrature
+SUN_MAX_HALF = 0.5 * np.pi - 1e-4     # widest half angle a sun's disk of directions is drawn with
+MAX_SUNS = 8                          # glsl/shading/irradiance.glsl's MAX_SUNS
+
+
+def tree_suns(lights) -> list:
+    """The suns among `lights`, in scene order, sharp ones too: Cycles' light tree holds them all in its
+    distant leaf, and every one of them takes a share of the picks (sun_pick)."""
+    return [lt for lt in lights if lt.kind == SUN]
+
+
+def band_loss(ns: np.ndarray, ng: np.ndarray, axis: np.ndarray, cos_beta: float, light_pdf) -> np.ndarray:
+    """∫ (1 − w)·cosθ_s dω over the directions of the cone (axis, cos β) above the shading normals' horizon
+    and below the geometric normals' (N,3 each, unit), w = p_l²/(p_l² + p_b²) the light strategy's
+    power-heuristic weight in Cycles' MIS (p_b = cosθ_s/π; its diffuse BSDF never samples below the
+    geometric surface), `light_pdf` p_l (N,) per steradian. The same quadrature as irradiance.glsl's
+    band_loss, which explains its parametrisation."""
+    ns, ng = np.asarray(ns, np.float64), np.asarray(ng, np.float64)
+    axis = np.asarray(axis, np.float64).reshape(3)
+    sin_beta = np.sqrt(max(1.0 - cos_beta * cos_beta, 0.0))
+    a = np.cross(ng, ns)
+    s = np.linalg.norm(a, axis=-1)
+    live = (ng @ axis < sin_beta) & (ns @ axis > -sin_beta) & (s >= 1e-4)
+    out = np.zeros(len(ns))
+    if not live.any():
+        return out
+    a, s, ns_, ng_ = a[live] / s[live, None], s[live], ns[live], ng[live]
+    pl2 = np.broadcast_to(np.asarray(light_pdf, np.float64), (len(ns),))[live] ** 2
+    delta = np.arctan2(s, np.einsum("nc,nc->n", ns_, ng_))
+    b0 = np.cross(a, ng_)
+    a_axis, b0_axis, ng_axis = a @ axis, b0 @ axis, ng_ @ axis
+    d_psi = delta / BAND_PSI
+    loss = np.zeros(len(a))
+    for j in range(BAND_PSI):
+        psi = (j + 0.5) * d_psi
+        b_axis = np.cos(psi) * b0_axis - np.sin(psi) * ng_axis
+        R = np.hypot(a_axis, b_axis)
+        theta0 = np.arctan2(b_axis, a_axis)
+        half = np.arccos(np.clip(cos_beta / np.maximum(R, 1e-30), -1.0, 1.0))
+        t0, t1 = np.maximum(theta0 - half, 0.0), np.minimum(theta0 + half, np.pi)
+        ok = (R > cos_beta) & (t1 > t0)
+        k = np.sin(delta - psi) / np.pi
+        d_theta = np.where(ok, t1 - t0, 0.0) / BAND_THETA
+        total = np.zeros(len(a))
+        for i in range(BAND_THETA):
+            st2 = np.sin(t0 + (i + 0.5) * d_theta) ** 2
+            pb2 = k * k * st2
+            total += st2 * pb2 / np.maximum(pl2 + pb2, 1e-300)
+        loss += np.where(ok, total * d_theta * np.sin(delta - psi), 0.0)
+    out[live] = loss * d_psi
+    return out
+
+
+def sun_pick(light: Light, lights, normals: np.ndarray) -> np.ndarray:
+    """Probability (N,) that Cycles' light tree picks `light` among the scene's suns with an angle at
+    receivers with shading `normals` (kernel/light/tree.h: the distant lights share one leaf): ½(max/Σmax +
+    min/Σmin) over the importance bounds of each sun's cone, or ½(max/Σmax + 1/count) where every min is 0.
+    Irradiance.glsl's sun_pick, which states the bounds; point, spot and area lights are not counted."""
+    suns = tree_suns(lights)[:MAX_SUNS]
+    n = np.asarray(normals, np.float64)
+    hi, lo = np.zeros((len(suns), len(n))), np.zeros((len(suns), len(n)))
+    own = -1
+    for i, sun in enumerate(suns):
+        toward = _normalize(np.asarray(sun.matrix, np.float64)[None, :3, 2])[0]
+        strength = float(np.mean(np.asarray(sun.color, np.float64)) * sun.power)
+        cu = np.cos(min(sun.angle / 2.0, SUN_MAX_HALF))
+        su = np.sqrt(1.0 - cu * cu)
+        ci = np.clip(n @ toward, -1.0, 1.0)
+        si = np.sqrt(1.0 - ci * ci)
+        c_min = np.where(ci >= cu, 1.0, ci * cu + si * su)
+        seen = c_min >= 0.0
+        hi[i] = np.where(seen, c_min * strength, 0.0)
+        lo[i] = np.where(seen, np.maximum(ci * cu - si * su, 0.0) * strength * cu, 0.0)
+        own = i if sun is light else own
+    if own < 0:
+        return np.ones(len(n))
+    sum_hi, sum_lo, count = hi.sum(0), lo.sum(0), (hi > 0.0).sum(0)
+    by_lo = np.where(sum_lo > 0.0, lo[own] / np.maximum(sum_lo, 1e-300),
+                     np.where(hi[own] > 0.0, 1.0 / np.maximum(count, 1), 0.0))
+    return np.where(sum_hi > 0.0, 0.5 * (hi[own] / np.maximum(sum_hi, 1e-300) + by_lo), 1.0)
+
+
+def irradiance(light: Light, points: np.ndarray, normals: np.ndarray, geometric=None, lights=None) -> np.ndarray:
+    """Unoccluded irradiance (N,3) float64 RGB at `points` (N,3) with unit shading `normals` (N,3) and
+    `geometric` normals (None: the same), `light` one of the scene's `lights` (None: alone). A sun's cone is
+    weighed in the band between the two horizons as Cycles' MIS weighs it (band_loss)."""
     x = np.asarray(points, np.float64).reshape(-1, 3)
     n = _normalize(np.asarray(normals, np.float64).reshape(-1, 3))
+    g = n if geometric is None else _normalize(np.asarray(geometric, np.float64).reshape(-1, 3))
     if x.shape[0] > CHUNK:  # bound the temporaries (N × polygon vertices × 3)
-        return np.concatenate([irradiance(light, x[i:i + CHUNK], n[i:i + CHUNK])
+        return np.concatenate([irradiance(light, x[i:i + CHUNK], n[i:i + CHUNK], g[i:i + CHUNK], lights)
                                for i in range(0, x.shape[0], CHUNK)], axis=0)
     color = np.asarray(light.color, np.float64).reshape(3)
     P = float(light.power)
@@ -412,7 +497,10 @@ def irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndar
             # radiance L = S / (π sin²β), so that E = S at normal incidence; measured against Cycles
             sb = np.sin(min(beta, 0.5 * np.pi))
             radiance = P / (np.pi * sb * sb) if getattr(light, "normalize", True) else P
-            e = radiance * cap_form_factor(n @ to_sun, sb * sb)
+            cap = cap_form_factor(n @ to_sun, sb * sb)
+            cos_beta = float(np.cos(min(beta, SUN_MAX_HALF)))
+            pdf = sun_pick(light, [light] if lights is None else lights, n) / (2.0 * np.pi * (1.0 - cos_beta))
+            e = radiance * np.maximum(cap - band_loss(n, g, to_sun, cos_beta, pdf), 0.0)
     else:
         raise ValueError(f"unknown light kind {light.kind!r}")
     e = np.where(np.isfinite(e), e, 0.0)

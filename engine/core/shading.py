@@ -15,12 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .irradiance import spot_tan_wide
+from .irradiance import MAX_SUNS, SUN_MAX_HALF, spot_tan_wide, tree_suns
 from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 
 LIGHT_POLYGON, LIGHT_SPHERE, LIGHT_POINT, LIGHT_SUN = 0, 1, 2, 3
 ELLIPSE_SIDES = 64
-SUN_MAX_HALF = 0.5 * np.pi - 1e-4     # widest half angle a sun's disk of directions is drawn with
 
 
 def light_defines(light: Light) -> dict:
@@ -30,11 +29,30 @@ def light_defines(light: Light) -> dict:
     return {"LIGHT_SHAPE": u["u_shape"], "POLY_SIDES": sides, "LIGHT_SPOT": int(light.kind == SPOT)}
 
 
-def light_uniforms(light: Light) -> dict:
-    """Uniform values of glsl/shading/irradiance.glsl for this light."""
+def light_uniforms(light: Light, lights=None) -> dict:
+    """Uniform values of glsl/shading/irradiance.glsl for this light, one of the scene's `lights` (None: the
+    light alone), whose suns weigh the smooth-normal band (sun_pick_uniforms)."""
     u = _light_values(light)
     del u["u_shape"]
+    u.update(sun_pick_uniforms(light, [light] if lights is None else lights))
     return u
+
+
+def sun_pick_uniforms(light: Light, lights) -> dict:
+    """What irradiance.glsl's sun_pick needs: the scene's suns (tree_suns: direction towards each, its
+    strength as Cycles' light tree weighs it, the channel mean, and the cosine of its half angle) and this
+    light's index among them (-1 where it is none, or past MAX_SUNS: then no band weighting)."""
+    suns = tree_suns(lights)[:MAX_SUNS]
+    rows, cos_half = [(0.0, 0.0, 0.0, 0.0)] * MAX_SUNS, [1.0] * MAX_SUNS
+    own = -1
+    for i, sun in enumerate(suns):
+        toward = np.asarray(sun.matrix, float)[:3, 2]
+        toward = toward / max(np.linalg.norm(toward), 1e-30)
+        rows[i] = (*toward, float(np.mean(np.asarray(sun.color, float)) * sun.power))
+        cos_half[i] = float(np.cos(min(sun.angle / 2.0, SUN_MAX_HALF)))
+        if sun is light:
+            own = i
+    return {"u_sun_count": len(suns), "u_sun_self": own, "u_suns": rows, "u_sun_cos_half": cos_half}
 
 
 def _light_values(light: Light) -> dict:

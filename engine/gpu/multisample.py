@@ -73,7 +73,7 @@ def shade_edges(frame, light, tau: float, samplers: dict, images: dict, *, has_r
     with frame.timings.stage("accumulate_msaa"):
         frame.dispatch("shading/accumulate_msaa.comp",
                        {"u_has_rgb": int(has_rgb), "u_aa_depth_threshold": float(tau),
-                        "u_edge_count": edges.count, **edges.uniforms, **light_uniforms(light)},
+                        "u_edge_count": edges.count, **edges.uniforms, **light_uniforms(light, frame.snap.lights)},
                        samplers={**samplers, **frame.gbuffer_samples}, images=images, buffers={0: edges.buffer},
                        defines=light_defines(light), groups=((edges.count + 63) // 64, 1, 1))
 

@@ -8,16 +8,19 @@ from ..core.snapshot import Light
 from .programs import program, set_uniforms
 
 
-def irradiance_at(worker, light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """The shader's unoccluded irradiance at arbitrary points (N, 3) → (N, 3); runs on the GPU thread.
-    Used to check glsl/shading/irradiance.glsl against engine/core/irradiance.py."""
+def irradiance_at(worker, light: Light, points: np.ndarray, normals: np.ndarray, geometric=None,
+                  lights=None) -> np.ndarray:
+    """The shader's unoccluded irradiance at arbitrary points (N, 3) → (N, 3), with shading `normals` and
+    `geometric` normals (None: the same), `light` one of the scene's `lights` (None: alone); runs on the GPU
+    thread. Used to check glsl/shading/irradiance.glsl against engine/core/irradiance.py."""
     ctx = worker.ctx
     n = len(points)
     pad = lambda a: np.c_[np.asarray(a, np.float32), np.zeros(n, np.float32)].tobytes()
-    bufs = [ctx.buffer(pad(points)), ctx.buffer(pad(normals)), ctx.buffer(reserve=16 * max(n, 1))]
+    bufs = [ctx.buffer(pad(points)), ctx.buffer(pad(normals)), ctx.buffer(reserve=16 * max(n, 1)),
+            ctx.buffer(pad(normals if geometric is None else geometric))]
     try:
         prog = program(worker, compute="shading/irradiance_points.comp", defines=light_defines(light))
-        set_uniforms(prog, {**light_uniforms(light), "u_count": n})
+        set_uniforms(prog, {**light_uniforms(light, lights), "u_count": n})
         for binding, buf in enumerate(bufs):
             buf.bind_to_storage_buffer(binding)
         prog.run((n + 63) // 64)

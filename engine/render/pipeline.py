@@ -118,7 +118,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         frame.progress.step(0.0, f"{light.name}: irradiance")
         frame.progress.check()
         with t.stage("irradiance"):
-            frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
+            frame.dispatch("shading/irradiance.comp", light_uniforms(light, snap.lights), images={0: irradiance},
                            defines=light_defines(light))
         # Only an emitter with an extent can light what its centre does not reach (lightview.sun_rim_faces,
         # local_rim_lights): count such pixels on the GPU, for the techniques that take rim views

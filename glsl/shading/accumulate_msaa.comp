@@ -63,7 +63,9 @@ void main() {
         if (n.w <= 0.0) continue;                   // background: no light
         vec4 a = texelFetch(ms_albedo, px, s);
         if (same_fragment(n, a, n0, a0)) { repeats += 1.0; continue; }
-        vec4 e = receiver_irradiance(sample_position(px, u_image_size, n.w), n.xyz);
+        // The multisampled G-buffer keeps no geometric normal (engine/gpu/multisample.py): another fragment's
+        // sample is shaded without the smooth-normal band (irradiance.glsl band_loss).
+        vec4 e = receiver_irradiance(sample_position(px, u_image_size, n.w), n.xyz, n.xyz);
         if (e.a <= 0.0) continue;
         bool same = own_lit && abs(n.w - n0.w) <= u_aa_depth_threshold * n0.w;
         vec3 v = same ? own_v : closest_visibility(px, n.w);
