@@ -112,6 +112,16 @@ def _read_int_attribute(mesh, name: str, domain: str, count: int):
     return out
 
 
+def mesh_is_closed(mesh) -> bool:
+    """Every edge of `mesh` joins exactly two faces (a watertight surface, as a flattened solid's coincident
+    sheets need: SceneSnapshot.coincident_sheets)."""
+    if not len(mesh.polygons) or not len(mesh.edges):
+        return False
+    edge_index = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("edge_index", edge_index)
+    return bool(np.all(np.bincount(edge_index, minlength=len(mesh.edges)) == 2))
+
+
 def read_mesh(mesh) -> _MeshArrays | None:
     """Triangulated local arrays of an evaluated mesh, bulk reads only. None for an empty mesh.
 
@@ -910,7 +920,7 @@ def _instance_ids(ob, parent, mesh, objects, object_index, albedo_tables, materi
     oid = object_index.get(okey)
     if oid is None:
         oid = object_index[okey] = len(objects)
-        objects.append(ObjectInfo(*okey))
+        objects.append(ObjectInfo(*okey, closed=mesh_is_closed(mesh)))
 
     mats = [slot.material for slot in ob.material_slots]
     if not mats:

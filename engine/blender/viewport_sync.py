@@ -53,7 +53,7 @@ class ViewportScene:
             info = extraction.object_info(ob, parent)
             oid = object_index.setdefault(info, len(objects))
             if oid == len(objects):
-                objects.append(ObjectInfo(*info))
+                objects.append(ObjectInfo(*info, closed=extraction.mesh_is_closed(ob.data)))
             if key not in seen:
                 seen.add(key)
                 stale = (key not in self.pieces or materials_changed or ob.name in dirty_objects

@@ -113,6 +113,7 @@ class ObjectInfo:
     role: str = "BOTH"              # Penumbra object role for techniques that split casters/receivers
     importance: float = 0.0         # 0 … 1: BACKPROJECTION's importance budget map raises the budget on its pixels
     terminator_offset: float = 0.1  # Blender's Shadow Terminator Geometry Offset (Cycles' smooth-surface lift)
+    closed: bool = False            # its mesh is watertight: every edge joins exactly two faces
 
 
 @dataclass
@@ -210,17 +211,18 @@ class SceneSnapshot:
         valid = np.isfinite(area) & (area > 0.0)
         return p[valid], normal[valid], area[valid], ids[valid]
 
-    def flat_objects(self, limit: int = 16) -> dict:
+    def flat_objects(self, limit: int = 16, include=None) -> dict:
         """Objects whose triangles all lie in one plane (a floor at any tilt, a flattened object), the
-        `limit` largest: index → (unit normal, offset) of the plane n·p = offset. A flat object shadows only
-        what lies beyond its plane as seen from the light (lightview.shadowing_caster_bounds)."""
+        `limit` largest, or those of `include` (object indices): index → (unit normal, offset) of the plane
+        n·p = offset. A flat object shadows only what lies beyond its plane as seen from the light
+        (lightview.shadowing_caster_bounds)."""
         if self.triangle_count == 0 or not self.objects:
             return {}
         p, normal, area, ids = self._drawn_triangles()
         weight = np.bincount(ids, area, len(self.objects))
         tol = 1e-6 * max(float(np.abs(p).max()) if p.size else 1.0, 1.0)
         out = {}
-        for index in np.argsort(-weight)[:limit]:
+        for index in (np.argsort(-weight)[:limit] if include is None else include):
             mine = ids == index
             if weight[index] <= 0.0:
                 continue
@@ -233,6 +235,31 @@ class SceneSnapshot:
             offset = float(pts.mean())
             if np.abs(pts - offset).max() <= tol:
                 out[int(index)] = (n, offset)
+        return out
+
+    def coincident_sheets(self) -> dict:
+        """Closed casters flattened into a plane (a zero object scale axis), whose surface Cycles shadows
+        through its own coincident opposite faces: index → (unit normal, offset, bounds (2, 3), share).
+        Every point of a flattened closed surface lies on two or more of its sheets, and a shadow ray leaving
+        one meets another at t ≈ 0. Where the plane is a coordinate plane (its coordinate the same float at
+        every corner) t is exactly 0 and every ray is blocked (share 1); otherwise t's rounding is a coin
+        flip and half of them are (share 0.5). Measured with Cycles, a flat torus under a sun: V 0.04 mean
+        unrotated, 0.497 and 0.501 tilted by 17° and 40° (64 spp)."""
+        if self.triangle_count == 0:
+            return {}
+        wanted = [i for i, ob in enumerate(self.objects) if ob.closed and ob.caster]
+        if not wanted:
+            return {}
+        flat = self.flat_objects(include=wanted)
+        bounds = self.object_bounds()
+        out = {}
+        for index in wanted:
+            if index not in flat:
+                continue
+            corners = self.positions[self.object_id == index].reshape(-1, 3)
+            exact = bool(np.any(np.all(corners == corners[:1], axis=0)))
+            n, offset = flat[index]
+            out[index] = (n, offset, bounds[index], 1.0 if exact else 0.5)
         return out
 
     def convex_objects(self, max_faces: int = 512, around=None, bounds: np.ndarray | None = None) -> dict:

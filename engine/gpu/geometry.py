@@ -168,6 +168,10 @@ class SceneGeometry:
             return snap.convex_objects(around=lights, bounds=self.object_bounds()) if lights else {}
         return self._fact("convex", read)
 
+    def coincident_sheets(self) -> dict:
+        """Flattened closed casters, which Cycles shadows through their own faces (SceneSnapshot.coincident_sheets)."""
+        return self._fact("sheets", lambda snap: snap.coincident_sheets())
+
     def convex_casters(self) -> dict:
         """Convex objects' face planes, whatever they hold (SceneSnapshot.convex_casters)."""
         return self._fact("convex_casters", lambda snap: snap.convex_casters)

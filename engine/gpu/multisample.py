@@ -64,15 +64,17 @@ class EdgeList:
 
 
 
-def shade_edges(frame, light, tau: float, samplers: dict, images: dict, *, has_rgb: bool) -> None:
+def shade_edges(frame, light, tau: float, samplers: dict, images: dict, *, has_rgb: bool,
+                sheets: bool = False) -> None:
     """After accumulate.comp added each pixel's own sample for `light`, replace that at the edge pixels by
-    the mean over their samples (glsl/shading/accumulate_msaa.comp). Timed as the stage `accumulate_msaa`."""
+    the mean over their samples (glsl/shading/accumulate_msaa.comp). `sheets`: samplers' u_sheet_light is
+    accumulate.comp's. Timed as the stage `accumulate_msaa`."""
     edges = frame.msaa_edges
     if not edges.count:
         return
     with frame.timings.stage("accumulate_msaa"):
         frame.dispatch("shading/accumulate_msaa.comp",
-                       {"u_has_rgb": int(has_rgb), "u_aa_depth_threshold": float(tau),
+                       {"u_has_rgb": int(has_rgb), "u_aa_depth_threshold": float(tau), "u_sheets": int(sheets),
                         "u_edge_count": edges.count, **edges.uniforms, **light_uniforms(light, frame.snap.lights)},
                        samplers={**samplers, **frame.gbuffer_samples}, images=images, buffers={0: edges.buffer},
                        defines=light_defines(light), groups=((edges.count + 63) // 64, 1, 1))

@@ -105,6 +105,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     # Where the visible pixels lie against flat and convex casters, once per frame (lightview.receiver_sides)
     frame.receiver_sides = sides = lightview.receiver_sides(
         snap.lights, frame.geometry.flat_objects(), frame.geometry.convex_objects(), position[..., :3], covered)
+    sheet_light = _sheet_light(frame, frame.geometry.coincident_sheets(), position, covered)
     debug: dict = {}
     stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
              "covered_pixels": int(covered.sum()), "technique": technique.identifier}
@@ -165,13 +166,16 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                                        lifted, geometric[:, :3], irradiance, object_bounds, caster_objects,
                                        visibility, stats, debug)
         with t.stage("accumulate"):
+            sheets = casters is not None and sheet_light is not None       # a light whose shadows count
             samplers = {"g_irradiance": irradiance, "u_visibility": visibility,
-                        "u_visibility_rgb": rgb if rgb is not None else visibility}
+                        "u_visibility_rgb": rgb if rgb is not None else visibility,
+                        "u_sheet_light": sheet_light if sheets else visibility}
             images = {0: combined, 1: unshadowed, 2: sums, 3: irradiance_sum}
-            frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None)},
+            frame.dispatch("shading/accumulate.comp", {"u_has_rgb": int(rgb is not None), "u_sheets": int(sheets)},
                            samplers=samplers, images=images)
             if frame.msaa_edges is not None:    # anti-aliased: every sample of the edge pixels shaded (§7)
-                shade_edges(frame, light, settings.aa_depth_threshold, samplers, images, has_rgb=rgb is not None)
+                shade_edges(frame, light, settings.aa_depth_threshold, samplers, images, has_rgb=rgb is not None,
+                            sheets=sheets)
         frame.end_light()                   # per-light structures (an MSSM) go before the next light
         frame.progress.step(1.0, f"{light.name}: done")
 
@@ -180,6 +184,26 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     for name, value in frame.stats.items():
         stats[name] = stats.get(name, 0) + value
     return FrameResult(out, dict(t), frame.warnings, stats)
+
+
+def _sheet_light(frame: Frame, sheets: dict, position: np.ndarray, covered: np.ndarray):
+    """The share of a shadowed light each pixel keeps where it lies on a flattened closed caster, which Cycles
+    shadows through its own coincident faces (SceneSnapshot.coincident_sheets: none, or half where the
+    plane's coordinate is not one float), as an R32F texture; None when no pixel lies on one. A pixel is on
+    it when it lies on the caster's plane within its bounds, to 1e-5 of their size."""
+    if not sheets:
+        return None
+    p = position[..., :3].astype(np.float64)
+    keep = np.ones(covered.shape, np.float32)
+    for normal, offset, (lo, hi), share in sheets.values():
+        tol = 1e-5 * max(1.0, abs(offset), float(np.max(hi - lo)))
+        on = covered & (np.abs(p @ normal - offset) <= tol) & np.all((p >= lo - tol) & (p <= hi + tol), axis=-1)
+        keep[on] *= 1.0 - share
+    if np.all(keep == 1.0):
+        return None
+    texture = frame.texture((frame.width, frame.height), 1)
+    texture.write(keep.tobytes())
+    return texture
 
 
 _BOUNDS_BYTES = 32     # render/lit_bounds.comp: a count, encoded min and max xyz, the hidden count

@@ -15,6 +15,8 @@
 uniform sampler2D u_visibility;
 uniform sampler2D u_visibility_rgb;
 uniform int u_has_rgb;
+uniform sampler2D u_sheet_light;    // as in accumulate.comp
+uniform int u_sheets;
 uniform float u_aa_depth_threshold;
 uniform uint u_edge_count;
 layout(std430, binding = 0) readonly buffer Edges { uint edge_count; uint pad[3]; ivec2 edge_pixels[]; };
@@ -24,8 +26,9 @@ layout(rgba32f, binding = 1) uniform image2D u_unshadowed;
 layout(rgba32f, binding = 3) uniform image2D u_irradiance;
 
 vec3 visibility_at(ivec2 q) {
-    float v = clamp(texelFetch(u_visibility, q, 0).r, 0.0, 1.0);
-    return u_has_rgb == 1 ? clamp(texelFetch(u_visibility_rgb, q, 0).rgb, 0.0, 1.0) : vec3(v);
+    float keep = u_sheets == 1 ? texelFetch(u_sheet_light, q, 0).r : 1.0;
+    float v = clamp(texelFetch(u_visibility, q, 0).r, 0.0, 1.0) * keep;
+    return u_has_rgb == 1 ? clamp(texelFetch(u_visibility_rgb, q, 0).rgb, 0.0, 1.0) * keep : vec3(v);
 }
 
 // The pixel (px or a 4-neighbour) with a visibility for this light whose depth is closest to `depth`; a
