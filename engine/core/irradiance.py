@@ -308,8 +308,9 @@ def cycles_radius_share(d: np.ndarray, radius: float, soft_falloff: bool) -> np.
     return np.mean(cos_u < np.float32(1.0), axis=1)
 
 
-def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """E per unit colour for a POINT or SPOT light (spot attenuation included), (N,) array."""
+def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """E per unit colour for a POINT or SPOT light (spot attenuation included), (N,) array; `g` the geometric
+    normals, for the smooth-normal band (band_loss), the light picked alone."""
     P = float(light.power)
     c = light.position
     to_l = c[None, :] - x
@@ -340,8 +341,16 @@ def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
         dd = np.maximum(d, r * (1.0 + 1e-9))
         centre = x + axis * ((dd * dd - r * r) / dd)[:, None]
         rr = r * np.sqrt(dd * dd - r * r) / dd
+    # The band, as irradiance.glsl takes it: the soft-falloff disk sampled by area, the true sphere's cone
+    # uniformly (Cycles' point_light_sample)
+    D2 = np.sum((centre - x) ** 2, axis=-1)
+    cos_beta = np.sqrt(D2 / np.maximum(D2 + rr * rr, 1e-300))
+    if getattr(light, "use_soft_falloff", True):
+        loss = band_loss(n, g, axis, cos_beta, D2 / (np.pi * np.maximum(rr * rr, 1e-300)), 3.0)
+    else:
+        loss = band_loss(n, g, axis, cos_beta, 1.0 / (2.0 * np.pi * np.maximum(1.0 - cos_beta, 1e-300)))
     if not is_spot:
-        ff = polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n)
+        ff = np.maximum(polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n) - loss, 0.0)
     else:
         # Cycles evaluates the cone per ray (direction from the emitter sample towards x, no cosine),
         # so average the attenuation over equal-area cells of the disk, weighted by each cell's
@@ -353,16 +362,20 @@ def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray) -> np.ndarray:
         w = np.maximum(np.einsum("ncj,nj->nc", qn, n), 0.0)     # the cells hold equal solid angles
         att = spot_attenuation(light, -qn.reshape(-1, 3)).reshape(q2.shape)
         mean_att = np.sum(w * att, axis=1) / np.maximum(np.sum(w, axis=1), _EPS)
-        ff = polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n) * mean_att
+        ff = np.maximum(polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n) - loss, 0.0) * mean_att
         foot = _spot_footprint(light, centre, rr, x, n)
         ff = np.where(np.isnan(foot), ff, foot)
     e = radiance * ff
     # inside a true sphere the whole hemisphere has radiance L, and Cycles skips the spot cone; a spot's
     # sphere is one-sided for BSDF rays (only those heading to its centre hit it), so with MIS Cycles keeps
     # (3 + cosθ)/4 of it, θ between the normal and the direction to the centre
+    # (without a cone, Cycles samples the inside over the cosine hemisphere, the BSDF's pdf: the band keeps
+    # half, irradiance.glsl)
     inside_e = radiance * np.pi
     if is_spot:
         inside_e = inside_e * (0.75 + 0.25 * np.sum(axis * n, axis=-1))
+    else:
+        inside_e = inside_e * (1.0 - 0.25 * (1.0 - np.clip(np.sum(n * g, axis=-1), -1.0, 1.0)))
     e = np.where(inside, inside_e, e)
     if is_spot and getattr(light, "spot_axisless", False):
         e = e * cycles_radius_share(d, r, getattr(light, "use_soft_falloff", True))
@@ -380,26 +393,31 @@ def tree_suns(lights) -> list:
     return [lt for lt in lights if lt.kind == SUN]
 
 
-def band_loss(ns: np.ndarray, ng: np.ndarray, axis: np.ndarray, cos_beta: float, light_pdf) -> np.ndarray:
-    """∫ (1 − w)·cosθ_s dω over the directions of the cone (axis, cos β) above the shading normals' horizon
-    and below the geometric normals' (N,3 each, unit), w = p_l²/(p_l² + p_b²) the light strategy's
-    power-heuristic weight in Cycles' MIS (p_b = cosθ_s/π; its diffuse BSDF never samples below the
-    geometric surface), `light_pdf` p_l (N,) per steradian. The same quadrature as irradiance.glsl's
-    band_loss, which explains its parametrisation."""
+def band_loss(ns: np.ndarray, ng: np.ndarray, axis, cos_beta, light_pdf, pdf_power: float = 0.0) -> np.ndarray:
+    """∫ (1 − w)·cosθ_s dω over the directions of the cone (axis, cos β; one or one per receiver) above the
+    shading normals' horizon and below the geometric normals' (N,3 each, unit), w = p_l²/(p_l² + p_b²) the
+    light strategy's power-heuristic weight in Cycles' MIS (p_b = cosθ_s/π; its diffuse BSDF never samples
+    below the geometric surface), p_l = `light_pdf` / cos^pdf_power of the angle off the axis, per steradian.
+    The same quadrature as irradiance.glsl's band_loss, which explains its parametrisation."""
     ns, ng = np.asarray(ns, np.float64), np.asarray(ng, np.float64)
-    axis = np.asarray(axis, np.float64).reshape(3)
-    sin_beta = np.sqrt(max(1.0 - cos_beta * cos_beta, 0.0))
+    count = len(ns)
+    axis = np.broadcast_to(np.asarray(axis, np.float64), (count, 3))
+    cos_beta = np.broadcast_to(np.asarray(cos_beta, np.float64), (count,))
+    light_pdf = np.broadcast_to(np.asarray(light_pdf, np.float64), (count,))
+    sin_beta = np.sqrt(np.maximum(1.0 - cos_beta * cos_beta, 0.0))
     a = np.cross(ng, ns)
     s = np.linalg.norm(a, axis=-1)
-    live = (ng @ axis < sin_beta) & (ns @ axis > -sin_beta) & (s >= 1e-4)
-    out = np.zeros(len(ns))
+    live = ((np.einsum("nc,nc->n", ng, axis) < sin_beta) & (np.einsum("nc,nc->n", ns, axis) > -sin_beta)
+            & (s >= 1e-4))
+    out = np.zeros(count)
     if not live.any():
         return out
-    a, s, ns_, ng_ = a[live] / s[live, None], s[live], ns[live], ng[live]
-    pl2 = np.broadcast_to(np.asarray(light_pdf, np.float64), (len(ns),))[live] ** 2
+    a, s, ns_, ng_, ax = a[live] / s[live, None], s[live], ns[live], ng[live], axis[live]
+    cb, pdf = cos_beta[live], light_pdf[live]
     delta = np.arctan2(s, np.einsum("nc,nc->n", ns_, ng_))
     b0 = np.cross(a, ng_)
-    a_axis, b0_axis, ng_axis = a @ axis, b0 @ axis, ng_ @ axis
+    a_axis, b0_axis = np.einsum("nc,nc->n", a, ax), np.einsum("nc,nc->n", b0, ax)
+    ng_axis = np.einsum("nc,nc->n", ng_, ax)
     d_psi = delta / BAND_PSI
     loss = np.zeros(len(a))
     for j in range(BAND_PSI):
@@ -407,16 +425,18 @@ def band_loss(ns: np.ndarray, ng: np.ndarray, axis: np.ndarray, cos_beta: float,
         b_axis = np.cos(psi) * b0_axis - np.sin(psi) * ng_axis
         R = np.hypot(a_axis, b_axis)
         theta0 = np.arctan2(b_axis, a_axis)
-        half = np.arccos(np.clip(cos_beta / np.maximum(R, 1e-30), -1.0, 1.0))
+        half = np.arccos(np.clip(cb / np.maximum(R, 1e-30), -1.0, 1.0))
         t0, t1 = np.maximum(theta0 - half, 0.0), np.minimum(theta0 + half, np.pi)
-        ok = (R > cos_beta) & (t1 > t0)
+        ok = (R > cb) & (t1 > t0)
         k = np.sin(delta - psi) / np.pi
         d_theta = np.where(ok, t1 - t0, 0.0) / BAND_THETA
         total = np.zeros(len(a))
         for i in range(BAND_THETA):
-            st2 = np.sin(t0 + (i + 0.5) * d_theta) ** 2
+            t = t0 + (i + 0.5) * d_theta
+            st2 = np.sin(t) ** 2
             pb2 = k * k * st2
-            total += st2 * pb2 / np.maximum(pl2 + pb2, 1e-300)
+            pl = pdf / np.maximum(R * np.cos(t - theta0), 1e-4) ** pdf_power if pdf_power > 0.0 else pdf
+            total += st2 * pb2 / np.maximum(pl * pl + pb2, 1e-300)
         loss += np.where(ok, total * d_theta * np.sin(delta - psi), 0.0)
     out[live] = loss * d_psi
     return out
@@ -486,7 +506,7 @@ def irradiance(light: Light, points: np.ndarray, normals: np.ndarray, geometric=
         # CCW about local +Z == CCW about the direction from a front receiver to the light
         e = np.where(front, radiance * polygon_form_factor(verts, n), 0.0)
     elif light.kind in (POINT, SPOT):
-        e = _sphere_light(light, x, n)
+        e = _sphere_light(light, x, n, g)
     elif light.kind == SUN:
         to_sun = m[:3, 2]  # light travels along -Z, so the sun is towards +Z
         beta = 0.5 * float(light.angle)

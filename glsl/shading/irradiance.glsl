@@ -236,9 +236,12 @@ float cap_form_factor(float cos_t, float s2) {
 // that band, so E = L·(cap − band_loss). The band is the wedge between the two planes: ω = cosθ·a + sinθ·
 // (cosψ·b0 − sinψ·ng), a along their common line, b0 in the geometric plane, ψ ∈ [0, δ] (δ the angle
 // between the normals), dω = sinθ dθ dψ and cosθ_s = sinθ·sin(δ − ψ). Per ψ the cone cuts θ to one interval
-// |θ − θ0| ≤ acos(cos β / R), exact, and midpoints integrate the smooth rest.
+// |θ − θ0| ≤ acos(cos β / R), exact, and midpoints integrate the smooth rest. The light's pdf is
+// light_pdf / cos^pdf_power of the angle off the axis: power 0 for a cone sampled uniformly (a sun, a true
+// sphere seen from outside), 3 for a disk facing x sampled by area (soft falloff: t²/(πr²·cos) with
+// t = d/cos).
 const int BAND_PSI = 6, BAND_THETA = 8;
-float band_loss(vec3 ns, vec3 ng, vec3 axis, float cos_beta, float light_pdf) {
+float band_loss(vec3 ns, vec3 ng, vec3 axis, float cos_beta, float light_pdf, float pdf_power) {
     float sin_beta = sqrt(max(1.0 - cos_beta * cos_beta, 0.0));
     if (dot(axis, ng) >= sin_beta || dot(axis, ns) <= -sin_beta) return 0.0;   // wholly above / below
     vec3 a = cross(ng, ns);
@@ -248,7 +251,6 @@ float band_loss(vec3 ns, vec3 ng, vec3 axis, float cos_beta, float light_pdf) {
     float delta = atan(s, dot(ns, ng));
     vec3 b0 = cross(a, ng);
     float a_axis = dot(a, axis), b0_axis = dot(b0, axis), ng_axis = dot(ng, axis);
-    float pl2 = light_pdf * light_pdf;
     float d_psi = delta / float(BAND_PSI);
     float loss = 0.0;
     for (int j = 0; j < BAND_PSI; ++j) {
@@ -264,9 +266,11 @@ float band_loss(vec3 ns, vec3 ng, vec3 axis, float cos_beta, float light_pdf) {
         float d_theta = (t1 - t0) / float(BAND_THETA);
         float sum = 0.0;
         for (int i = 0; i < BAND_THETA; ++i) {
-            float st = sin(t0 + (float(i) + 0.5) * d_theta);
+            float t = t0 + (float(i) + 0.5) * d_theta;
+            float st = sin(t);
             float pb2 = k * k * st * st;
-            sum += st * st * pb2 / (pl2 + pb2);
+            float pl = pdf_power > 0.0 ? light_pdf / pow(max(R * cos(t - theta0), 1e-4), pdf_power) : light_pdf;
+            sum += st * st * pb2 / (pl * pl + pb2);
         }
         loss += sum * d_theta * sin(delta - psi);
     }
@@ -335,7 +339,7 @@ vec3 light_irradiance(vec3 x, vec3 n, vec3 ng) {
         if (u_sun_self >= 0) {
             float cos_beta = inversesqrt(1.0 + t2);
             float pdf = sun_pick(n) / (6.28318530718 * (1.0 - cos_beta));   // uniform over the cone
-            cap = max(cap - band_loss(n, ng, -u_emit_dir, cos_beta, pdf), 0.0);
+            cap = max(cap - band_loss(n, ng, -u_emit_dir, cos_beta, pdf, 0.0), 0.0);
         }
         return u_radiance * cap;
     }
@@ -357,7 +361,11 @@ vec3 light_irradiance(vec3 x, vec3 n, vec3 ng) {
         // share plus half of the BSDF rays' share, (1 + cosθ)/2 of the hemisphere: E = π·L·(3 + cosθ)/4.
         if (d <= u_radius) {
             float cos_c = d > 0.0 ? dot(n, to_light) / d : 1.0;
-            return radiance * (3.14159265359 * (LIGHT_SPOT == 1 ? 0.75 + 0.25 * cos_c : 1.0));
+            if (LIGHT_SPOT == 1) return radiance * (3.14159265359 * (0.75 + 0.25 * cos_c));
+            // Cycles samples the inside of a sphere over the cosine hemisphere (point_light_sample): its pdf
+            // is the BSDF's, so the band between the horizons keeps half, a loss of ∫_band cosθ_s dω / 2 =
+            // π(1 − cos δ)/4 (band_loss's wedge integrated whole).
+            return radiance * (3.14159265359 * (1.0 - 0.25 * (1.0 - clamp(dot(n, ng), -1.0, 1.0))));
         }
         dir = to_light / max(length(to_light), 1e-30);
         float r2 = u_radius * u_radius;
@@ -378,7 +386,14 @@ vec3 light_irradiance(vec3 x, vec3 n, vec3 ng) {
     }
     float spot = LIGHT_SPOT == 1 ? spot_over_disk(center, u, v, n) : 1.0;
     if (spot <= 0.0) return vec3(0.0);
-    return radiance * spot * (0.5 * clipped_polygon_sum(center, u, v, 32, n));
+    // The smooth-normal band (band_loss), the light picked alone: Cycles samples the soft-falloff disk by
+    // area, the true sphere's cone uniformly (point_light_sample). The spot's cone as its mean over the disk.
+    float D2 = dot(center, center);
+    float cos_beta = sqrt(D2 / (D2 + rho * rho));
+    float loss = u_soft_falloff == 1
+        ? band_loss(n, ng, dir, cos_beta, D2 / (3.14159265359 * rho * rho), 3.0)
+        : band_loss(n, ng, dir, cos_beta, 1.0 / (6.28318530718 * (1.0 - cos_beta)), 0.0);
+    return radiance * spot * max(0.5 * clipped_polygon_sum(center, u, v, 32, n) - loss, 0.0);
 }
 
 // What the shading passes store for a covered receiver: irradiance clamped at zero, NaN/Inf dropped, and its
