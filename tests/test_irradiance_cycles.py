@@ -606,13 +606,18 @@ def test_wide_suns_over_leaning_smooth_normals(case):
 # sphere's cone uniformly from outside and the cosine hemisphere from inside, where the band keeps half.
 # Measured, Cycles 2048 spp / the model / without the band's weight: soft disk 3.1425 / 3.1433 / 3.1823; sphere
 # outside 6.0057 / 6.0058 / 6.2153, inside 7.4919 / 7.4923 / 7.9577; wider soft disk at 60° 0.8924 / 0.8928 /
-# 0.9274; a 150° spot's true sphere 5.5013 / 5.5006 / 5.5313.
+# 0.9274; a 150° spot's true sphere 5.5013 / 5.5006 / 5.5313. Area lights: Cycles samples a rectangle over
+# its solid angle, an ellipse by area; 3 × 1.8 m rectangle 10.8073 / 10.7935 / 10.8724, 2.5 m disk
+# 14.5442 / 14.5579 / 15.2533.
 LEANING_LOCAL_CASES = {
     "point_soft": (40.0, "POINT", (0.0, 1.0, 0.3), 1.0, True),
     "point_sphere_outside": (40.0, "POINT", (0.0, 1.0, 0.3), 1.0, False),
     "point_sphere_inside": (40.0, "POINT", (0.0, 0.3, 0.3), 1.0, False),
     "point_soft_wide": (60.0, "POINT", (0.0, 2.0, 0.5), 2.0, True),
     "spot_sphere": (40.0, "SPOT", (0.0, 1.0, 0.6), 0.8, False),
+    # area lights, facing the origin (size: the rectangle's X side, Y = 0.6 X; the disk's diameter)
+    "rectangle": (40.0, "RECTANGLE", (0.0, 0.8, 0.6), 3.0, False),
+    "disk": (60.0, "DISK", (0.0, 0.6, 0.4), 2.5, False),
 }
 
 
@@ -621,14 +626,18 @@ def test_wide_local_lights_over_leaning_smooth_normals(case):
     lean, kind, location, radius, soft = LEANING_LOCAL_CASES[case]
     scene, ns, _ = _leaning_plane_scene(lean, [], samples=2048, view=0.02)
     scene.render.resolution_x = scene.render.resolution_y = 8
-    data = bpy.data.lights.new("local", kind)
-    data.shadow_soft_size, data.energy, data.use_soft_falloff = radius, 100.0, soft
+    data = bpy.data.lights.new("local", "AREA" if kind in ("RECTANGLE", "DISK") else kind)
+    data.energy = 100.0
+    if kind in ("RECTANGLE", "DISK"):
+        data.shape, data.size, data.size_y = kind, radius, 0.6 * radius
+    else:
+        data.shadow_soft_size, data.use_soft_falloff = radius, soft
     if kind == "SPOT":
         data.spot_size, data.spot_blend = math.radians(150), 0.0
     lob = bpy.data.objects.new("local", data)
     scene.collection.objects.link(lob)
     lob.location, lob.visible_camera = location, False
-    if kind == "SPOT":
+    if kind != "POINT":
         from mathutils import Vector
         lob.rotation_euler = Vector(tuple(-np.array(location))).to_track_quat("-Z", "Y").to_euler()
     bpy.context.view_layer.update()

@@ -110,11 +110,13 @@ SUNS = [Light("A", SUN, _matrix(), COLOR, 3.0, angle=3.0),
 # (A wide spot is left out: its cone's quadratures differ by 1.1 % on average between the shader and numpy
 # with or without the band, for a 1 m true sphere with a 120° cone; the band itself is the point light's code.)
 WIDE_LOCAL = [Light("L", POINT, _matrix(), COLOR, 300.0, radius=1.5),
-              Light("L", POINT, _matrix(), COLOR, 300.0, radius=1.5, use_soft_falloff=False)]
+              Light("L", POINT, _matrix(), COLOR, 300.0, radius=1.5, use_soft_falloff=False),
+              Light("L", AREA, _matrix(), COLOR, 300.0, RECTANGLE, 3.0, 2.0),
+              Light("L", AREA, _matrix(), COLOR, 300.0, DISK, 3.0, 3.0)]
 
 
-@pytest.mark.parametrize("lights", [SUNS[:1], SUNS, WIDE_LOCAL[:1], WIDE_LOCAL[1:]],
-                         ids=["one_sun", "three_suns", "soft_disk", "true_sphere"])
+@pytest.mark.parametrize("lights", [SUNS[:1], SUNS] + [[light] for light in WIDE_LOCAL],
+                         ids=["one_sun", "three_suns", "soft_disk", "true_sphere", "rectangle", "disk"])
 def test_shader_weighs_the_smooth_normal_band_as_numpy(lights):
     """Wide suns over receivers whose geometric normal leans from the shading one (irradiance.band_loss and
     sun_pick): the shader against numpy, and the band's weight must matter here for the check to mean much."""

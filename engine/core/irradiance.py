@@ -33,6 +33,10 @@ temperature tint. Optional attributes, read with getattr (absent → Blender's d
   light.normalize (default True): False → the power is not divided by the emitter area:
       AREA and POINT/SPOT with r > 0: L = P / π;  SUN with α > 0: L = S;  delta lights unaffected.
 AREA `spread` < 180° (Cycles narrows the emission lobe) is not modelled: full 180° assumed.
+Smooth shading: with `geometric` normals, the light's directions above the shading normal's horizon but below
+the geometric surface count at Cycles' MIS weight only (its diffuse BSDF never samples there): band_loss for
+suns and point/spot lights, polygon_band_loss for area lights, with each light's own sampling pdf; suns are
+picked among the scene's suns as its light tree does (sun_pick), other lights as if alone.
 """
 from __future__ import annotations
 
@@ -442,6 +446,93 @@ def band_loss(ns: np.ndarray, ng: np.ndarray, axis, cos_beta, light_pdf, pdf_pow
     return out
 
 
+def _triangle_solid_angle(a, b, c):
+    """Solid angles (N,) of the triangles (a, b, c) (N,3 each) seen from the origin (Van Oosterom & Strackee
+    1983)."""
+    la, lb, lc = (np.linalg.norm(v, axis=-1) for v in (a, b, c))
+    num = np.abs(np.einsum("nc,nc->n", a, np.cross(b, c)))
+    den = (la * lb * lc + np.einsum("nc,nc->n", a, b) * lc + np.einsum("nc,nc->n", a, c) * lb
+           + np.einsum("nc,nc->n", b, c) * la)
+    return 2.0 * np.arctan2(num, den)
+
+
+def polygon_band_loss(ns, ng, C, U, V, emit, ellipse: bool) -> np.ndarray:
+    """band_loss for an area light C + u·U + v·V (C (N,3) relative to each receiver; |u|, |v| ≤ 1, or
+    u² + v² ≤ 1 for an ellipse), picked alone: Cycles samples a rectangle uniformly over its solid angle and
+    an ellipse by area. irradiance.glsl's polygon_band_loss, which explains the clipping."""
+    ns, ng, C = (np.asarray(v, np.float64) for v in (ns, ng, C))
+    U, V, emit = (np.asarray(v, np.float64).reshape(3) for v in (U, V, emit))
+    a = np.cross(ng, ns)
+    s = np.linalg.norm(a, axis=-1)
+    out = np.zeros(len(ns))
+    live = s >= 1e-4
+    if not live.any():
+        return out
+    a, s, ns_, ng_, C = a[live] / s[live, None], s[live], ns[live], ng[live], C[live]
+    delta = np.arctan2(s, np.einsum("nc,nc->n", ns_, ng_))
+    b0 = np.cross(a, ng_)
+    h = C @ emit
+    if ellipse:
+        area_k = h * h / (np.pi * np.sqrt((U @ U) * (V @ V)))
+        pdf_rect = np.zeros(len(C))
+    else:
+        p00, p10, p11, p01 = C - U - V, C + U - V, C + U + V, C - U + V
+        omega = _triangle_solid_angle(p00, p10, p11) + _triangle_solid_angle(p00, p11, p01)
+        pdf_rect = 1.0 / np.maximum(omega, 1e-300)
+    d_psi = delta / BAND_PSI
+    loss = np.zeros(len(C))
+    for j in range(BAND_PSI):
+        psi = (j + 0.5) * d_psi
+        b = np.cos(psi)[:, None] * b0 - np.sin(psi)[:, None] * ng_
+        m = np.cross(a, b)
+        al, be, ga = m @ U, m @ V, np.einsum("nc,nc->n", m, C)
+        nn = al * al + be * be
+        ok = nn >= 1e-20
+        nn_ = np.where(ok, nn, 1.0)
+        f = -ga[:, None] * np.stack([al, be], -1) / nn_[:, None]
+        direction = np.stack([-be, al], -1) / np.sqrt(nn_)[:, None]
+        if ellipse:
+            d2 = np.sum(f * f, axis=-1)
+            ok &= d2 < 1.0
+            s1 = np.sqrt(np.maximum(1.0 - d2, 0.0))
+            s0 = -s1
+        else:
+            s0, s1 = np.full(len(C), -1e30), np.full(len(C), 1e30)
+            for k in range(2):
+                dk, fk = direction[:, k], f[:, k]
+                flat = np.abs(dk) < 1e-12
+                dk_ = np.where(flat, 1.0, dk)
+                e0, e1 = (-1.0 - fk) / dk_, (1.0 - fk) / dk_
+                s0 = np.where(flat, s0, np.maximum(s0, np.minimum(e0, e1)))
+                s1 = np.where(flat, np.where(np.abs(fk) > 1.0, -1e30, s1), np.minimum(s1, np.maximum(e0, e1)))
+            ok &= s1 > s0
+        q0 = C + (f[:, 0] + s0 * direction[:, 0])[:, None] * U + (f[:, 1] + s0 * direction[:, 1])[:, None] * V
+        q1 = C + (f[:, 0] + s1 * direction[:, 0])[:, None] * U + (f[:, 1] + s1 * direction[:, 1])[:, None] * V
+        th0 = np.arctan2(np.einsum("nc,nc->n", q0, b), np.einsum("nc,nc->n", q0, a))
+        th1 = np.arctan2(np.einsum("nc,nc->n", q1, b), np.einsum("nc,nc->n", q1, a))
+        lo, hi = np.minimum(th0, th1), np.maximum(th0, th1)
+        wrap = hi - lo > np.pi
+        lo, hi = np.where(wrap, hi, lo), np.where(wrap, np.pi, hi)
+        t0, t1 = np.maximum(lo, 0.0), np.minimum(hi, np.pi)
+        ok &= t1 > t0
+        k = np.sin(delta - psi) / np.pi
+        d_theta = np.where(ok, t1 - t0, 0.0) / BAND_THETA
+        total = np.zeros(len(C))
+        for i in range(BAND_THETA):
+            t = t0 + (i + 0.5) * d_theta
+            st = np.sin(t)
+            pb2 = (k * st) ** 2
+            if ellipse:
+                c = np.abs(np.einsum("nc,c->n", np.cos(t)[:, None] * a + st[:, None] * b, emit))
+                pl = area_k / np.maximum(c ** 3, 1e-12)
+            else:
+                pl = pdf_rect
+            total += st * st * pb2 / np.maximum(pl * pl + pb2, 1e-300)
+        loss += np.where(ok, total * d_theta * np.sin(delta - psi), 0.0)
+    out[live] = loss * d_psi
+    return out
+
+
 def sun_pick(light: Light, lights, normals: np.ndarray) -> np.ndarray:
     """Probability (N,) that Cycles' light tree picks `light` among the scene's suns with an angle at
     receivers with shading `normals` (kernel/light/tree.h: the distant lights share one leaf): ½(max/Σmax +
@@ -504,7 +595,15 @@ def irradiance(light: Light, points: np.ndarray, normals: np.ndarray, geometric=
         # emits towards local -Z only: receivers must be strictly on the -Z side
         front = (x - m[:3, 3]) @ m[:3, 2] < 0.0
         # CCW about local +Z == CCW about the direction from a front receiver to the light
-        e = np.where(front, radiance * polygon_form_factor(verts, n), 0.0)
+        ff = polygon_form_factor(verts, n)
+        # the smooth-normal band (polygon_band_loss), past the small-light limit as in irradiance.glsl
+        rel = verts - verts.mean(axis=1, keepdims=True)
+        wide = np.max(np.einsum("nkc,nkc->nk", rel, rel), axis=1) >= SMALL_LIGHT ** 2 * np.sum((m[:3, 3] - x) ** 2, -1)
+        if wide.any():
+            half_u, half_v = m[:3, 0] * 0.5 * sx, m[:3, 1] * 0.5 * sy
+            ff[wide] = np.maximum(ff[wide] - polygon_band_loss(
+                n[wide], g[wide], m[:3, 3] - x[wide], half_u, half_v, -m[:3, 2], light.shape in (DISK, ELLIPSE)), 0.0)
+        e = np.where(front, radiance * ff, 0.0)
     elif light.kind in (POINT, SPOT):
         e = _sphere_light(light, x, n, g)
     elif light.kind == SUN:

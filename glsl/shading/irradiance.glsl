@@ -277,6 +277,89 @@ float band_loss(vec3 ns, vec3 ng, vec3 axis, float cos_beta, float light_pdf, fl
     return loss * d_psi;
 }
 
+// Solid angle of the triangle (a, b, c) seen from the origin (Van Oosterom & Strackee, "The solid angle of a
+// plane triangle", IEEE Trans. Biomed. Eng. 30(2), 1983).
+float triangle_solid_angle(vec3 a, vec3 b, vec3 c) {
+    float la = length(a), lb = length(b), lc = length(c);
+    float num = abs(dot(a, cross(b, c)));
+    float den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la;
+    return 2.0 * atan(num, den);
+}
+
+// band_loss for an area light, the light picked alone: the rectangle or ellipse C + u·U + v·V (|u|, |v| ≤ 1,
+// or u² + v² ≤ 1; C relative to x) instead of a cone. Cycles samples a rectangle uniformly over its solid
+// angle (Ureña et al.'s spherical rectangles, kernel/light/area.h) and an ellipse by area (pdf t²/(A·cosθ_l)).
+// Per ψ the wedge's half circle ω(θ) meets the light along one arc: the plane of that circle cuts the light's
+// plane in a line, clipped to the shape in (u, v); its ends give θ, the band's θ ∈ [0, π] keeps a part.
+float polygon_band_loss(vec3 ns, vec3 ng, vec3 C, vec3 U, vec3 V, vec3 emit, bool ellipse) {
+    vec3 a = cross(ng, ns);
+    float s = length(a);
+    if (s < 1e-4) return 0.0;
+    a /= s;
+    float delta = atan(s, dot(ns, ng));
+    vec3 b0 = cross(a, ng);
+    float uu = dot(U, U), vv = dot(V, V);
+    float h = dot(C, emit);                           // the light's plane is at signed height h along emit
+    float pdf_rect = 0.0, area_k = 0.0;
+    if (ellipse) {
+        area_k = h * h / (3.14159265359 * sqrt(uu * vv));   // p_l = h²/(A·|ω·emit|³)
+    } else {
+        vec3 p00 = C - U - V, p10 = C + U - V, p11 = C + U + V, p01 = C - U + V;
+        float omega = triangle_solid_angle(p00, p10, p11) + triangle_solid_angle(p00, p11, p01);
+        if (omega <= 0.0) return 0.0;
+        pdf_rect = 1.0 / omega;
+    }
+    float d_psi = delta / float(BAND_PSI);
+    float loss = 0.0;
+    for (int j = 0; j < BAND_PSI; ++j) {
+        float psi = (float(j) + 0.5) * d_psi;
+        vec3 b = cos(psi) * b0 - sin(psi) * ng;
+        vec3 m = cross(a, b);                         // normal of the circle's plane
+        // The line m·(C + u·U + v·V) = 0 in (u, v): α·u + β·v + γ = 0, clipped to the shape.
+        float al = dot(m, U), be = dot(m, V), ga = dot(m, C);
+        float nn = al * al + be * be;
+        if (nn < 1e-20) continue;
+        vec2 f = -ga * vec2(al, be) / nn, dir = vec2(-be, al) * inversesqrt(nn);
+        float s0, s1;
+        if (ellipse) {
+            float d2 = dot(f, f);
+            if (d2 >= 1.0) continue;
+            s1 = sqrt(1.0 - d2); s0 = -s1;
+        } else {
+            s0 = -1e30; s1 = 1e30;
+            for (int k = 0; k < 2; ++k) {
+                if (abs(dir[k]) < 1e-12) { if (abs(f[k]) > 1.0) { s1 = -1e30; } continue; }
+                float e0 = (-1.0 - f[k]) / dir[k], e1 = (1.0 - f[k]) / dir[k];
+                s0 = max(s0, min(e0, e1)); s1 = min(s1, max(e0, e1));
+            }
+            if (s1 <= s0) continue;
+        }
+        vec3 q0 = C + (f.x + s0 * dir.x) * U + (f.y + s0 * dir.y) * V;
+        vec3 q1 = C + (f.x + s1 * dir.x) * U + (f.y + s1 * dir.y) * V;
+        float th0 = atan(dot(q0, b), dot(q0, a)), th1 = atan(dot(q1, b), dot(q1, a));
+        float lo = min(th0, th1), hi = max(th0, th1);
+        if (hi - lo > 3.14159265359) { lo = hi; hi = 3.14159265359; }    // the arc passes through -a
+        float t0 = max(lo, 0.0), t1 = min(hi, 3.14159265359);
+        if (t1 <= t0) continue;
+        float k = sin(delta - psi) * 0.318309886;
+        float d_theta = (t1 - t0) / float(BAND_THETA);
+        float sum = 0.0;
+        for (int i = 0; i < BAND_THETA; ++i) {
+            float t = t0 + (float(i) + 0.5) * d_theta;
+            float st = sin(t);
+            float pb2 = k * k * st * st;
+            float pl = pdf_rect;
+            if (ellipse) {
+                float c = abs(dot(cos(t) * a + st * b, emit));
+                pl = area_k / max(c * c * c, 1e-12);
+            }
+            sum += st * st * pb2 / (pl * pl + pb2);
+        }
+        loss += sum * d_theta * sin(delta - psi);
+    }
+    return loss * d_psi;
+}
+
 // The suns of the scene for Cycles' light tree, which picks one per light sample (kernel/light/tree.h): all
 // distant lights share one leaf, whose emitters it picks with probability ½(max_i/Σmax + min_i/Σmin), the
 // importance bounds of a cone of half angle θ_u seen at incidence θ_i from the shading normal:
@@ -323,7 +406,9 @@ vec3 light_irradiance(vec3 x, vec3 n, vec3 ng) {
             float area = (POLY_SIDES == 4 ? 4.0 : 3.14159265359) * length(cross(u_axis_u, u_axis_v));
             return u_radiance * (area * max(dot(n, w), 0.0) * abs(dot(w, u_emit_dir)) / max(d2, 1e-38));
         }
-        return u_radiance * (0.5 * clipped_polygon_sum(to_light, u_axis_u, u_axis_v, POLY_SIDES, n));
+        float ff = 0.5 * clipped_polygon_sum(to_light, u_axis_u, u_axis_v, POLY_SIDES, n);
+        return u_radiance * max(ff - polygon_band_loss(n, ng, to_light, u_axis_u, u_axis_v, u_emit_dir,
+                                                       POLY_SIDES > 4), 0.0);
     }
     if (LIGHT_SHAPE == LIGHT_POINT) {
         float spot = LIGHT_SPOT == 1 ? spot_attenuation(-to_light) : 1.0;
