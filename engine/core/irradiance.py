@@ -397,6 +397,37 @@ def tree_suns(lights) -> list:
     return [lt for lt in lights if lt.kind == SUN]
 
 
+def _band_wedge(ns, ng):
+    """The wedges between the two horizons (irradiance.glsl band_wedge): live (N,) where the normals differ,
+    and for those the common line a, b0 in the geometric plane and the angle δ."""
+    a = np.cross(ng, ns)
+    s = np.linalg.norm(a, axis=-1)
+    live = s >= 1e-4
+    a = a[live] / s[live, None]
+    delta = np.arctan2(s[live], np.einsum("nc,nc->n", ns[live], ng[live]))
+    return live, a, np.cross(a, ng[live]), delta
+
+
+def _band_arc(a, b, t0, t1, ok, psi, delta, axis, p0, power: float) -> np.ndarray:
+    """∫ (1 − w)·cosθ_s over the arcs θ ∈ [t0, t1] at ψ (0 where not `ok`), the light's pdf
+    p0 / |ω·axis|^power (irradiance.glsl band_arc)."""
+    k = np.sin(delta - psi) / np.pi
+    d_theta = np.where(ok, t1 - t0, 0.0) / BAND_THETA
+    total = np.zeros(len(a))
+    for i in range(BAND_THETA):
+        t = t0 + (i + 0.5) * d_theta
+        st = np.sin(t)
+        pb2 = (k * st) ** 2
+        if power > 0.0:
+            c = np.abs(np.einsum("nc,nc->n", np.cos(t)[:, None] * a + st[:, None] * b,
+                                 np.broadcast_to(axis, a.shape)))
+            pl = p0 / np.maximum(c, 1e-4) ** power
+        else:
+            pl = p0
+        total += st * st * pb2 / np.maximum(pl * pl + pb2, 1e-300)
+    return np.where(ok, total * d_theta * np.sin(delta - psi), 0.0)
+
+
 def band_loss(ns: np.ndarray, ng: np.ndarray, axis, cos_beta, light_pdf, pdf_power: float = 0.0) -> np.ndarray:
     """∫ (1 − w)·cosθ_s dω over the directions of the cone (axis, cos β; one or one per receiver) above the
     shading normals' horizon and below the geometric normals' (N,3 each, unit), w = p_l²/(p_l² + p_b²) the
@@ -409,39 +440,26 @@ def band_loss(ns: np.ndarray, ng: np.ndarray, axis, cos_beta, light_pdf, pdf_pow
     cos_beta = np.broadcast_to(np.asarray(cos_beta, np.float64), (count,))
     light_pdf = np.broadcast_to(np.asarray(light_pdf, np.float64), (count,))
     sin_beta = np.sqrt(np.maximum(1.0 - cos_beta * cos_beta, 0.0))
-    a = np.cross(ng, ns)
-    s = np.linalg.norm(a, axis=-1)
-    live = ((np.einsum("nc,nc->n", ng, axis) < sin_beta) & (np.einsum("nc,nc->n", ns, axis) > -sin_beta)
-            & (s >= 1e-4))
     out = np.zeros(count)
+    wedge, a, b0, delta = _band_wedge(ns, ng)
+    straddles = (np.einsum("nc,nc->n", ng, axis) < sin_beta) & (np.einsum("nc,nc->n", ns, axis) > -sin_beta)
+    live, keep = wedge & straddles, straddles[wedge]
     if not live.any():
         return out
-    a, s, ns_, ng_, ax = a[live] / s[live, None], s[live], ns[live], ng[live], axis[live]
-    cb, pdf = cos_beta[live], light_pdf[live]
-    delta = np.arctan2(s, np.einsum("nc,nc->n", ns_, ng_))
-    b0 = np.cross(a, ng_)
-    a_axis, b0_axis = np.einsum("nc,nc->n", a, ax), np.einsum("nc,nc->n", b0, ax)
-    ng_axis = np.einsum("nc,nc->n", ng_, ax)
+    a, b0, delta = a[keep], b0[keep], delta[keep]
+    ng_, ax, cb, pdf = ng[live], axis[live], cos_beta[live], light_pdf[live]
+    a_axis = np.einsum("nc,nc->n", a, ax)
     d_psi = delta / BAND_PSI
     loss = np.zeros(len(a))
     for j in range(BAND_PSI):
         psi = (j + 0.5) * d_psi
-        b_axis = np.cos(psi) * b0_axis - np.sin(psi) * ng_axis
+        b = np.cos(psi)[:, None] * b0 - np.sin(psi)[:, None] * ng_
+        b_axis = np.einsum("nc,nc->n", b, ax)
         R = np.hypot(a_axis, b_axis)
         theta0 = np.arctan2(b_axis, a_axis)
         half = np.arccos(np.clip(cb / np.maximum(R, 1e-30), -1.0, 1.0))
         t0, t1 = np.maximum(theta0 - half, 0.0), np.minimum(theta0 + half, np.pi)
-        ok = (R > cb) & (t1 > t0)
-        k = np.sin(delta - psi) / np.pi
-        d_theta = np.where(ok, t1 - t0, 0.0) / BAND_THETA
-        total = np.zeros(len(a))
-        for i in range(BAND_THETA):
-            t = t0 + (i + 0.5) * d_theta
-            st2 = np.sin(t) ** 2
-            pb2 = k * k * st2
-            pl = pdf / np.maximum(R * np.cos(t - theta0), 1e-4) ** pdf_power if pdf_power > 0.0 else pdf
-            total += st2 * pb2 / np.maximum(pl * pl + pb2, 1e-300)
-        loss += np.where(ok, total * d_theta * np.sin(delta - psi), 0.0)
+        loss += _band_arc(a, b, t0, t1, (R > cb) & (t1 > t0), psi, delta, ax, pdf, pdf_power)
     out[live] = loss * d_psi
     return out
 
@@ -462,23 +480,16 @@ def polygon_band_loss(ns, ng, C, U, V, emit, ellipse: bool) -> np.ndarray:
     an ellipse by area. irradiance.glsl's polygon_band_loss, which explains the clipping."""
     ns, ng, C = (np.asarray(v, np.float64) for v in (ns, ng, C))
     U, V, emit = (np.asarray(v, np.float64).reshape(3) for v in (U, V, emit))
-    a = np.cross(ng, ns)
-    s = np.linalg.norm(a, axis=-1)
     out = np.zeros(len(ns))
-    live = s >= 1e-4
+    live, a, b0, delta = _band_wedge(ns, ng)
     if not live.any():
         return out
-    a, s, ns_, ng_, C = a[live] / s[live, None], s[live], ns[live], ng[live], C[live]
-    delta = np.arctan2(s, np.einsum("nc,nc->n", ns_, ng_))
-    b0 = np.cross(a, ng_)
-    h = C @ emit
+    ng_, C = ng[live], C[live]
     if ellipse:
-        area_k = h * h / (np.pi * np.sqrt((U @ U) * (V @ V)))
-        pdf_rect = np.zeros(len(C))
+        p0 = (C @ emit) ** 2 / (np.pi * np.sqrt((U @ U) * (V @ V)))     # p_l = h²/(A·|ω·emit|³)
     else:
         p00, p10, p11, p01 = C - U - V, C + U - V, C + U + V, C - U + V
-        omega = _triangle_solid_angle(p00, p10, p11) + _triangle_solid_angle(p00, p11, p01)
-        pdf_rect = 1.0 / np.maximum(omega, 1e-300)
+        p0 = 1.0 / np.maximum(_triangle_solid_angle(p00, p10, p11) + _triangle_solid_angle(p00, p11, p01), 1e-300)
     d_psi = delta / BAND_PSI
     loss = np.zeros(len(C))
     for j in range(BAND_PSI):
@@ -506,29 +517,14 @@ def polygon_band_loss(ns, ng, C, U, V, emit, ellipse: bool) -> np.ndarray:
                 s0 = np.where(flat, s0, np.maximum(s0, np.minimum(e0, e1)))
                 s1 = np.where(flat, np.where(np.abs(fk) > 1.0, -1e30, s1), np.minimum(s1, np.maximum(e0, e1)))
             ok &= s1 > s0
-        q0 = C + (f[:, 0] + s0 * direction[:, 0])[:, None] * U + (f[:, 1] + s0 * direction[:, 1])[:, None] * V
-        q1 = C + (f[:, 0] + s1 * direction[:, 0])[:, None] * U + (f[:, 1] + s1 * direction[:, 1])[:, None] * V
-        th0 = np.arctan2(np.einsum("nc,nc->n", q0, b), np.einsum("nc,nc->n", q0, a))
-        th1 = np.arctan2(np.einsum("nc,nc->n", q1, b), np.einsum("nc,nc->n", q1, a))
+        ends = [C + (f[:, 0] + e * direction[:, 0])[:, None] * U + (f[:, 1] + e * direction[:, 1])[:, None] * V
+                for e in (s0, s1)]
+        th0, th1 = (np.arctan2(np.einsum("nc,nc->n", q, b), np.einsum("nc,nc->n", q, a)) for q in ends)
         lo, hi = np.minimum(th0, th1), np.maximum(th0, th1)
-        wrap = hi - lo > np.pi
+        wrap = hi - lo > np.pi                        # the arc passes through -a
         lo, hi = np.where(wrap, hi, lo), np.where(wrap, np.pi, hi)
         t0, t1 = np.maximum(lo, 0.0), np.minimum(hi, np.pi)
-        ok &= t1 > t0
-        k = np.sin(delta - psi) / np.pi
-        d_theta = np.where(ok, t1 - t0, 0.0) / BAND_THETA
-        total = np.zeros(len(C))
-        for i in range(BAND_THETA):
-            t = t0 + (i + 0.5) * d_theta
-            st = np.sin(t)
-            pb2 = (k * st) ** 2
-            if ellipse:
-                c = np.abs(np.einsum("nc,c->n", np.cos(t)[:, None] * a + st[:, None] * b, emit))
-                pl = area_k / np.maximum(c ** 3, 1e-12)
-            else:
-                pl = pdf_rect
-            total += st * st * pb2 / np.maximum(pl * pl + pb2, 1e-300)
-        loss += np.where(ok, total * d_theta * np.sin(delta - psi), 0.0)
+        loss += _band_arc(a, b, t0, t1, ok & (t1 > t0), psi, delta, emit, p0, 3.0 if ellipse else 0.0)
     out[live] = loss * d_psi
     return out
 

@@ -241,38 +241,55 @@ float cap_form_factor(float cos_t, float s2) {
 // sphere seen from outside), 3 for a disk facing x sampled by area (soft falloff: t²/(πr²·cos) with
 // t = d/cos).
 const int BAND_PSI = 6, BAND_THETA = 8;
+
+// The wedge between the two horizons: its common line a, b0 in the geometric plane, its angle δ; false where
+// the normals agree (no band).
+bool band_wedge(vec3 ns, vec3 ng, out vec3 a, out vec3 b0, out float delta) {
+    a = cross(ng, ns);
+    float s = length(a);
+    b0 = vec3(0.0);
+    delta = 0.0;
+    if (s < 1e-4) return false;
+    a /= s;
+    delta = atan(s, dot(ns, ng));
+    b0 = cross(a, ng);
+    return true;
+}
+
+// ∫(1 − weight)·cosθ_s over the half circle's arc θ ∈ [t0, t1] at ψ, the light's pdf p0 / |ω·axis|^power.
+float band_arc(vec3 a, vec3 b, float t0, float t1, float psi, float delta, vec3 axis, float p0, float power) {
+    float k = sin(delta - psi) * 0.318309886;       // p_b = k·sinθ
+    float d_theta = (t1 - t0) / float(BAND_THETA);
+    float sum = 0.0;
+    for (int i = 0; i < BAND_THETA; ++i) {
+        float t = t0 + (float(i) + 0.5) * d_theta;
+        float st = sin(t);
+        float pb2 = k * k * st * st;
+        float pl = power > 0.0 ? p0 / pow(max(abs(dot(cos(t) * a + st * b, axis)), 1e-4), power) : p0;
+        sum += st * st * pb2 / (pl * pl + pb2);
+    }
+    return sum * d_theta * sin(delta - psi);
+}
+
 float band_loss(vec3 ns, vec3 ng, vec3 axis, float cos_beta, float light_pdf, float pdf_power) {
     float sin_beta = sqrt(max(1.0 - cos_beta * cos_beta, 0.0));
     if (dot(axis, ng) >= sin_beta || dot(axis, ns) <= -sin_beta) return 0.0;   // wholly above / below
-    vec3 a = cross(ng, ns);
-    float s = length(a);
-    if (s < 1e-4) return 0.0;           // one plane: no band
-    a /= s;
-    float delta = atan(s, dot(ns, ng));
-    vec3 b0 = cross(a, ng);
+    vec3 a, b0;
+    float delta;
+    if (!band_wedge(ns, ng, a, b0, delta)) return 0.0;
     float a_axis = dot(a, axis), b0_axis = dot(b0, axis), ng_axis = dot(ng, axis);
     float d_psi = delta / float(BAND_PSI);
     float loss = 0.0;
     for (int j = 0; j < BAND_PSI; ++j) {
         float psi = (float(j) + 0.5) * d_psi;
-        float b_axis = cos(psi) * b0_axis - sin(psi) * ng_axis;
+        vec3 b = cos(psi) * b0 - sin(psi) * ng;
+        float b_axis = dot(b, axis);
         float R = sqrt(a_axis * a_axis + b_axis * b_axis);
         if (R <= cos_beta) continue;
         float theta0 = atan(b_axis, a_axis);
         float half_width = acos(clamp(cos_beta / R, -1.0, 1.0));
         float t0 = max(theta0 - half_width, 0.0), t1 = min(theta0 + half_width, 3.14159265359);
-        if (t1 <= t0) continue;
-        float k = sin(delta - psi) * 0.318309886;       // p_b = k·sinθ
-        float d_theta = (t1 - t0) / float(BAND_THETA);
-        float sum = 0.0;
-        for (int i = 0; i < BAND_THETA; ++i) {
-            float t = t0 + (float(i) + 0.5) * d_theta;
-            float st = sin(t);
-            float pb2 = k * k * st * st;
-            float pl = pdf_power > 0.0 ? light_pdf / pow(max(R * cos(t - theta0), 1e-4), pdf_power) : light_pdf;
-            sum += st * st * pb2 / (pl * pl + pb2);
-        }
-        loss += sum * d_theta * sin(delta - psi);
+        if (t1 > t0) loss += band_arc(a, b, t0, t1, psi, delta, axis, light_pdf, pdf_power);
     }
     return loss * d_psi;
 }
@@ -292,22 +309,18 @@ float triangle_solid_angle(vec3 a, vec3 b, vec3 c) {
 // Per ψ the wedge's half circle ω(θ) meets the light along one arc: the plane of that circle cuts the light's
 // plane in a line, clipped to the shape in (u, v); its ends give θ, the band's θ ∈ [0, π] keeps a part.
 float polygon_band_loss(vec3 ns, vec3 ng, vec3 C, vec3 U, vec3 V, vec3 emit, bool ellipse) {
-    vec3 a = cross(ng, ns);
-    float s = length(a);
-    if (s < 1e-4) return 0.0;
-    a /= s;
-    float delta = atan(s, dot(ns, ng));
-    vec3 b0 = cross(a, ng);
-    float uu = dot(U, U), vv = dot(V, V);
+    vec3 a, b0;
+    float delta;
+    if (!band_wedge(ns, ng, a, b0, delta)) return 0.0;
     float h = dot(C, emit);                           // the light's plane is at signed height h along emit
-    float pdf_rect = 0.0, area_k = 0.0;
+    float p0 = 0.0;
     if (ellipse) {
-        area_k = h * h / (3.14159265359 * sqrt(uu * vv));   // p_l = h²/(A·|ω·emit|³)
+        p0 = h * h / (3.14159265359 * sqrt(dot(U, U) * dot(V, V)));   // p_l = h²/(A·|ω·emit|³)
     } else {
         vec3 p00 = C - U - V, p10 = C + U - V, p11 = C + U + V, p01 = C - U + V;
         float omega = triangle_solid_angle(p00, p10, p11) + triangle_solid_angle(p00, p11, p01);
         if (omega <= 0.0) return 0.0;
-        pdf_rect = 1.0 / omega;
+        p0 = 1.0 / omega;
     }
     float d_psi = delta / float(BAND_PSI);
     float loss = 0.0;
@@ -340,22 +353,7 @@ float polygon_band_loss(vec3 ns, vec3 ng, vec3 C, vec3 U, vec3 V, vec3 emit, boo
         float lo = min(th0, th1), hi = max(th0, th1);
         if (hi - lo > 3.14159265359) { lo = hi; hi = 3.14159265359; }    // the arc passes through -a
         float t0 = max(lo, 0.0), t1 = min(hi, 3.14159265359);
-        if (t1 <= t0) continue;
-        float k = sin(delta - psi) * 0.318309886;
-        float d_theta = (t1 - t0) / float(BAND_THETA);
-        float sum = 0.0;
-        for (int i = 0; i < BAND_THETA; ++i) {
-            float t = t0 + (float(i) + 0.5) * d_theta;
-            float st = sin(t);
-            float pb2 = k * k * st * st;
-            float pl = pdf_rect;
-            if (ellipse) {
-                float c = abs(dot(cos(t) * a + st * b, emit));
-                pl = area_k / max(c * c * c, 1e-12);
-            }
-            sum += st * st * pb2 / (pl * pl + pb2);
-        }
-        loss += sum * d_theta * sin(delta - psi);
+        if (t1 > t0) loss += band_arc(a, b, t0, t1, psi, delta, emit, p0, ellipse ? 3.0 : 0.0);
     }
     return loss * d_psi;
 }
