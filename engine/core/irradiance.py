@@ -508,14 +508,14 @@ def polygon_band_loss(ns, ng, C, U, V, emit, ellipse: bool) -> np.ndarray:
             s1 = np.sqrt(np.maximum(1.0 - d2, 0.0))
             s0 = -s1
         else:
-            s0, s1 = np.full(len(C), -1e30), np.full(len(C), 1e30)
+            s0, s1 = np.full(len(C), -1e9), np.full(len(C), 1e9)
             for k in range(2):
                 dk, fk = direction[:, k], f[:, k]
                 flat = np.abs(dk) < 1e-12
                 dk_ = np.where(flat, 1.0, dk)
                 e0, e1 = (-1.0 - fk) / dk_, (1.0 - fk) / dk_
                 s0 = np.where(flat, s0, np.maximum(s0, np.minimum(e0, e1)))
-                s1 = np.where(flat, np.where(np.abs(fk) > 1.0, -1e30, s1), np.minimum(s1, np.maximum(e0, e1)))
+                s1 = np.where(flat, np.where(np.abs(fk) > 1.0, -1e9, s1), np.minimum(s1, np.maximum(e0, e1)))
             ok &= s1 > s0
         ends = [C + (f[:, 0] + e * direction[:, 0])[:, None] * U + (f[:, 1] + e * direction[:, 1])[:, None] * V
                 for e in (s0, s1)]

@@ -339,9 +339,9 @@ float polygon_band_loss(vec3 ns, vec3 ng, vec3 C, vec3 U, vec3 V, vec3 emit, boo
             if (d2 >= 1.0) continue;
             s1 = sqrt(1.0 - d2); s0 = -s1;
         } else {
-            s0 = -1e30; s1 = 1e30;
+            s0 = -1e9; s1 = 1e9;            // unbounded until the box clips it
             for (int k = 0; k < 2; ++k) {
-                if (abs(dir[k]) < 1e-12) { if (abs(f[k]) > 1.0) { s1 = -1e30; } continue; }
+                if (abs(dir[k]) < 1e-12) { if (abs(f[k]) > 1.0) { s1 = -1e9; } continue; }
                 float e0 = (-1.0 - f[k]) / dir[k], e1 = (1.0 - f[k]) / dir[k];
                 s0 = max(s0, min(e0, e1)); s1 = min(s1, max(e0, e1));
             }
