@@ -66,6 +66,16 @@ def _edge_term(a: np.ndarray, b: np.ndarray, n: np.ndarray) -> np.ndarray:
     return np.where(cl > _EPS * _EPS, theta * proj, 0.0)
 
 
+def subtends_small(verts: np.ndarray) -> np.ndarray:
+    """(N,) whether each polygon (N, K, 3, relative to its receiver) subtends less than SMALL_LIGHT (its
+    extent from its centroid over the centroid's distance): polygon_form_factor takes it as a point, and
+    the smooth-normal band (polygon_band_loss) leaves it out, as irradiance.glsl does."""
+    centre = verts.mean(axis=1)
+    rel = verts - centre[:, None, :]
+    extent2 = np.max(np.einsum("nkc,nkc->nk", rel, rel), axis=1)
+    return extent2 < SMALL_LIGHT * SMALL_LIGHT * np.einsum("nc,nc->n", centre, centre)
+
+
 def polygon_form_factor(verts: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """Σ-term of Lambert's formula, divided by 2, i.e. E/L for a polygon clipped to n·v > 0.
 
@@ -79,12 +89,11 @@ def polygon_form_factor(verts: np.ndarray, normals: np.ndarray) -> np.ndarray:
     # area A times cosθ_x·cosθ_light / d², within SMALL_LIGHT² of the exact value. The edge sum cannot be
     # used there: its O(1) terms cancel down to the O(size²) result, so their rounding is amplified by
     # (distance / size)² (a 1e-4 rad sun came out 20 % off in float64).
-    centre = verts.mean(axis=1)
-    rel = verts - centre[:, None, :]
-    extent2 = np.max(np.einsum("nkc,nkc->nk", rel, rel), axis=1)
-    c2 = np.einsum("nc,nc->n", centre, centre)
-    small = extent2 < SMALL_LIGHT * SMALL_LIGHT * c2
+    small = subtends_small(verts)
     if small.any():
+        centre = verts.mean(axis=1)
+        rel = verts - centre[:, None, :]
+        c2 = np.einsum("nc,nc->n", centre, centre)
         out = np.empty(verts.shape[0])
         r, c, cc = rel[small], centre[small], c2[small]
         vec_area = 0.5 * np.cross(r, np.roll(r, -1, axis=1)).sum(axis=1)
@@ -397,6 +406,15 @@ def tree_suns(lights) -> list:
     return [lt for lt in lights if lt.kind == SUN]
 
 
+def sun_tree_terms(sun: Light) -> tuple:
+    """What Cycles' light tree weighs a sun by (sun_pick): the unit direction towards it, its strength (the
+    channel mean) and the cosine of its half angle."""
+    toward = np.asarray(sun.matrix, np.float64)[:3, 2]
+    toward = toward / max(float(np.linalg.norm(toward)), 1e-30)
+    strength = float(np.mean(np.asarray(sun.color, np.float64)) * sun.power)
+    return toward, strength, float(np.cos(min(sun.angle / 2.0, SUN_MAX_HALF)))
+
+
 def _band_wedge(ns, ng):
     """The wedges between the two horizons (irradiance.glsl band_wedge): live (N,) where the normals differ,
     and for those the common line a, b0 in the geometric plane and the angle δ."""
@@ -539,9 +557,7 @@ def sun_pick(light: Light, lights, normals: np.ndarray) -> np.ndarray:
     hi, lo = np.zeros((len(suns), len(n))), np.zeros((len(suns), len(n)))
     own = -1
     for i, sun in enumerate(suns):
-        toward = _normalize(np.asarray(sun.matrix, np.float64)[None, :3, 2])[0]
-        strength = float(np.mean(np.asarray(sun.color, np.float64)) * sun.power)
-        cu = np.cos(min(sun.angle / 2.0, SUN_MAX_HALF))
+        toward, strength, cu = sun_tree_terms(sun)
         su = np.sqrt(1.0 - cu * cu)
         ci = np.clip(n @ toward, -1.0, 1.0)
         si = np.sqrt(1.0 - ci * ci)
@@ -593,8 +609,7 @@ def irradiance(light: Light, points: np.ndarray, normals: np.ndarray, geometric=
         # CCW about local +Z == CCW about the direction from a front receiver to the light
         ff = polygon_form_factor(verts, n)
         # the smooth-normal band (polygon_band_loss), past the small-light limit as in irradiance.glsl
-        rel = verts - verts.mean(axis=1, keepdims=True)
-        wide = np.max(np.einsum("nkc,nkc->nk", rel, rel), axis=1) >= SMALL_LIGHT ** 2 * np.sum((m[:3, 3] - x) ** 2, -1)
+        wide = ~subtends_small(verts)
         if wide.any():
             half_u, half_v = m[:3, 0] * 0.5 * sx, m[:3, 1] * 0.5 * sy
             ff[wide] = np.maximum(ff[wide] - polygon_band_loss(

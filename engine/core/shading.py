@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .irradiance import MAX_SUNS, SUN_MAX_HALF, spot_tan_wide, tree_suns
+from .irradiance import MAX_SUNS, SUN_MAX_HALF, spot_tan_wide, sun_tree_terms, tree_suns
 from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 
 LIGHT_POLYGON, LIGHT_SPHERE, LIGHT_POINT, LIGHT_SUN = 0, 1, 2, 3
@@ -46,10 +46,8 @@ def sun_pick_uniforms(light: Light, lights) -> dict:
     rows, cos_half = [(0.0, 0.0, 0.0, 0.0)] * MAX_SUNS, [1.0] * MAX_SUNS
     own = -1
     for i, sun in enumerate(suns):
-        toward = np.asarray(sun.matrix, float)[:3, 2]
-        toward = toward / max(np.linalg.norm(toward), 1e-30)
-        rows[i] = (*toward, float(np.mean(np.asarray(sun.color, float)) * sun.power))
-        cos_half[i] = float(np.cos(min(sun.angle / 2.0, SUN_MAX_HALF)))
+        toward, strength, cos_half[i] = sun_tree_terms(sun)
+        rows[i] = (*map(float, toward), strength)
         if sun is light:
             own = i
     return {"u_sun_count": len(suns), "u_sun_self": own, "u_suns": rows, "u_sun_cos_half": cos_half}
