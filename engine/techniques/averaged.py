@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import lightview
-from ..core.light_shape import spot_cone_tans
+from ..core.light_shape import light_half_extent, spot_cone_tans
 from ..core.shading import spot_uniforms
 from ..core.shader_constants import (SIDE_ALL, SIDE_INSIDE, SIDE_OUTSIDE, WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE,
                                      WEIGHT_SUN)
@@ -330,11 +330,9 @@ def light_extent(light: Light) -> float:
     accumulate.comp's measure of how wide a caster's penumbra is against a texel."""
     if light.is_delta:
         return 0.0
-    if light.kind == AREA:
-        return min(light.size_x, light.size_y) / 2.0
-    if light.kind == SUN:
-        return float(np.tan(min(light.angle / 2.0, np.radians(89.0))))
-    return float(light.radius)
+    extent = float(min(light_half_extent(light)))
+    # a sun wider than 178° is held at tan 89° here, short of the shading clamp light_half_extent draws at
+    return min(extent, float(np.tan(np.radians(89.0)))) if light.kind == SUN else extent
 
 
 class AveragedMaps(Technique):
