@@ -52,8 +52,9 @@ class ViewportScene:
             key = (ob.name, ob.data.name)
             info = extraction.object_info(ob, parent)
             oid = object_index.setdefault(info, len(objects))
-            if oid == len(objects):
-                objects.append(ObjectInfo(*info, closed=extraction.mesh_is_closed(ob.data)))
+            new_object = oid == len(objects)
+            if new_object:
+                objects.append(ObjectInfo(*info))
             if key not in seen:
                 seen.add(key)
                 stale = (key not in self.pieces or materials_changed or ob.name in dirty_objects
@@ -68,6 +69,8 @@ class ViewportScene:
                         self.pieces[key] = piece
                     changed.add(key)
             if key in self.pieces:
+                if new_object:      # its mesh's watertightness, read once with the piece, not on every sync
+                    objects[oid].closed = self.pieces[key].closed
                 instances.append(Instance(key, np.array(inst.matrix_world, np.float64), oid))
         for key in set(self.pieces) - seen:        # deleted objects
             del self.pieces[key]
@@ -105,7 +108,7 @@ def _read_piece(ob, extraction, warnings) -> MeshPiece | None:
         uv = np.ascontiguousarray(geometry["uv"])
     return MeshPiece(np.ascontiguousarray(geometry["positions"]), np.ascontiguousarray(geometry["normals"]),
                      np.ascontiguousarray(geometry["albedo"]), uv=uv, ranges=ranges,
-                     textures=textures.textures if ranges else [])
+                     textures=textures.textures if ranges else [], closed=extraction.mesh_is_closed(ob.data))
 
 
 class UpdateRecorder:

@@ -19,6 +19,7 @@ class MeshPiece:
     uv: np.ndarray | None = None
     ranges: list = field(default_factory=list)
     textures: list = field(default_factory=list)        # AlbedoTexture
+    closed: bool = False        # the mesh is watertight (ObjectInfo.closed), read with the piece
 
     @property
     def bounds(self) -> np.ndarray:
