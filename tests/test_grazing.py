@@ -83,6 +83,26 @@ def test_pcss_on_a_tilted_floor_within_twice_reference(tilted):
     assert ours["mae_shadow"] <= 2.0 * best["mae_shadow"]
 
 
+@pytest.mark.parametrize("name", ["tilted", "slab", "contact"])
+def test_backprojection_next_to_contacts_within_cycles_16_and_twice_reference(name):
+    """Receivers next to their casters: a ball on a tilted floor, a wall's foot lit nearly edge-on, a ball and
+    a wall on the ground. There BACKPROJECTION's coarse micro-occluders sit close to the
+    receiver, where 1/(d − z) magnifies their approximation (one depth, one box) into the penumbra. With the
+    plane refit, the centre clip and the near-field split (the defaults) it must stay at or below Cycles at
+    16 spp and within twice REFERENCE's mae_shadow (issue 10). At 96², before (MEAN refit, no split) → after:
+    tilted 0.043 → 0.026 (Cycles-16 0.031, REFERENCE 0.014), slab 0.062 → 0.022 (0.031, 0.013), contact
+    0.024 → 0.019 (0.030, 0.011). (Suzanne: 0.036 → 0.025, under Cycles-16's 0.032 but not within twice
+    REFERENCE's 0.012.)"""
+    sc, snap, ref = _setup(name)
+    ours = metrics.compare(_visibility(snap, "BACKPROJECTION"), ref.visibility, ref.mask)["mae_shadow"]
+    best = metrics.compare(_visibility(snap, "REFERENCE"), ref.visibility, ref.mask)["mae_shadow"]
+    c16 = reference.cycles_visibility(sc, samples=16, seed=3)
+    cycles16 = metrics.compare(c16.visibility, ref.visibility, ref.mask)["mae_shadow"]
+    print(name, "BACKPROJECTION", ours, "Cycles-16", cycles16, "REFERENCE", best)
+    assert ours <= cycles16
+    assert ours <= 2.0 * best
+
+
 @pytest.mark.parametrize("name", ["tilted", "suzanne"])
 def test_pcss_has_no_isolated_outliers(name):
     """Salt-and-pepper across the penumbra is the bug. Over the penumbra (Cycles 0.05 < V < 0.95) where the

@@ -22,8 +22,9 @@ PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT = 0, 1, 2
 BUDGET_UNIFORM, BUDGET_BORDER, BUDGET_UNBOUNDED, BUDGET_IMPORTANCE = 0, 1, 2, 3
 LOQ_INTEGER, LOQ_WRITE, LOQ_BLEND = 0, 1, 3
 # BACKPROJECTION's coarse refit (the REFIT define, bp_coarse_fit): none (the papers'), the occluding finer
-# parts' box at their minimum or mean depth, or the cell's own box at their mean depth.
-REFIT_NONE, REFIT_EXTENT, REFIT_MEAN, REFIT_DEPTH = 0, 1, 2, 3
+# parts' box at their minimum or mean depth, the cell's own box at their mean depth, or the parts' box at
+# their mean depth tilted by their depth slope.
+REFIT_NONE, REFIT_EXTENT, REFIT_MEAN, REFIT_DEPTH, REFIT_PLANE = 0, 1, 2, 3, 4
 
 # REFERENCE's sample weights (u_weight_mode).
 WEIGHT_NONE = 0             # plain average of the hard maps

@@ -13,13 +13,16 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
 * at most b×b micro-occluders per layer: a coarser hierarchy level, sampled on its own grid, when the area is
   larger (§5);
 * by default (bp_coarse_fit, ours; NONE is the papers') a coarse micropatch/microrect refitted per receiver
-  to its finer-level parts that occlude it: their bounding box, at their minimum or mean depth, instead of the
-  whole cell at the minimum depth of all its texels (which over-darkens beside silhouettes and under surfaces
-  the light grazes); and (bp_coverage, ours) shrunk to the share of its texels nearer than the receiver, from
+  to its finer-level parts that occlude it: their bounding box, at their mean depth (or minimum), tilted by
+  their depth slope (PLANE, the default), instead of the whole cell at the minimum depth of all its texels
+  (which over-darkens beside silhouettes and under surfaces the light grazes, and next to a contact covers the
+  wrong share of the light); with any refit, a receiver the depth map sees keeps the light's centre out of
+  every coarse micro-occluder's light rectangle; and (bp_coverage, ours) shrunk to the share of its texels
+  nearer than the receiver, from
   the count, mean, maximum and variance of their depths (structures/coverage.py, the microrects' members), so
-  that bars finer than a coarse cell with gaps between them do not fuse into an umbra; and (bp_split, ours, off
-  by default until measured on every scene) split into its finer parts, down to level 0, while it backprojects wider than a
-  share of the light (next to contacts);
+  that bars finer than a coarse cell with gaps between them do not fuse into an umbra; and (bp_split, ours)
+  split into its finer parts, down to level 0, while it backprojects wider than a share of the light (next to
+  contacts);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
 * round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
@@ -41,7 +44,7 @@ from ..core.light_shape import weighted_sun_half
 from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM,
                                      CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
-                                     REFINE_MSSM, REFINE_NONE, REFINE_YSM, REFIT_DEPTH, REFIT_EXTENT, REFIT_MEAN,
+                                     REFINE_MSSM, REFINE_NONE, REFINE_YSM, REFIT_DEPTH, REFIT_EXTENT, REFIT_MEAN, REFIT_PLANE,
                                      REFIT_NONE)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from ..gpu import loops
@@ -83,7 +86,7 @@ PRIMITIVE = {"MICROPATCH": PRIMITIVE_MICROPATCH, "MICROQUAD": PRIMITIVE_MICROQUA
 
 BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32}
 REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
-REFIT = {"NONE": REFIT_NONE, "EXTENT": REFIT_EXTENT, "MEAN": REFIT_MEAN, "DEPTH": REFIT_DEPTH}
+REFIT = {"NONE": REFIT_NONE, "EXTENT": REFIT_EXTENT, "MEAN": REFIT_MEAN, "DEPTH": REFIT_DEPTH, "PLANE": REFIT_PLANE}
 LOQ_DEPTH_JUMP = 0.05           # relative camera-depth jump at which the LOQ smoothing stops (a discontinuity)
 
 # Mesa's llvmpipe ends a shader's loops once they have run 65535 iterations in all (engine/gpu/loops.py,
@@ -234,22 +237,25 @@ class Backprojection(Technique):
                "blended (Schwarz & Stamminger 2008, §4.2); off: one integer level per pixel (2007)"),
         Option("bp_query_growth", True, "Over-precision fix", "Grow the queried area to the support of the "
                "micro-occluders of the level it will use before classifying (2008, §6)"),
-        Option("bp_coarse_fit", "MEAN", "Coarse refit", "Coarse micro-occluders (micropatches, microrects) "
-               "fitted per receiver to their finer-level cells that occlude it (not in the papers)",
+        Option("bp_coarse_fit", "PLANE", "Coarse refit", "Coarse micro-occluders (micropatches, microrects) "
+               "fitted per receiver to their finer-level cells that occlude it, and kept off the light's centre "
+               "where the depth map sees the receiver (not in the papers)",
                items=(("NONE", "None (papers)", "The cell or microrect at the minimum depth of all its texels"),
                       ("EXTENT", "Extent", "Shrunk to the occluding finer cells, at their minimum depth"),
                       ("MEAN", "Extent and mean depth", "Shrunk to the occluding finer cells, at their mean "
                        "depth"),
-                      ("DEPTH", "Mean depth", "Its own extent, at the mean depth of its occluding finer cells"))),
+                      ("DEPTH", "Mean depth", "Its own extent, at the mean depth of its occluding finer cells"),
+                      ("PLANE", "Extent, mean depth and slope", "As MEAN, tilted by the depth slope of its occluding "
+                       "finer cells: a surface the light grazes stays on that surface next to the receiver"))),
         Option("bp_coverage", True, "Coarse coverage", "Coarse micro-occluders (micropatches, microrects) "
                "shrunk to the share of their texels nearer than the receiver, from their depth statistics: "
                "occluders finer than a cell (grids, fences) stop fusing into an umbra (not in the papers)"),
-        Option("bp_split", 0.0, "Near-field split", "Coarse micro-occluders (micropatches, microrects) whose "
+        Option("bp_split", 0.3, "Near-field split", "Coarse micro-occluders (micropatches, microrects) whose "
                "backprojection is wider than this share of the light's side are replaced by their finer parts, "
                "down to level 0: next to the receiver (contact shadows, a surface beside it) one coarse cell "
-               "spans much of the light and its error becomes the penumbra's (0.15 at 128²: slab 0.062 → 0.024, "
-               "suzanne 0.036 → 0.029, tilted 0.041 → 0.029, for 1.8–3.2× the frame time); 0: off, the papers "
-               "(not in them)",
+               "spans much of the light and its error becomes the penumbra's (with the PLANE refit at 128², "
+               "0.3: slab 0.037 → 0.020, tilted 0.031 → 0.025, for about 1.3× the frame time); 0: off, the "
+               "papers (not in them)",
                min=0.0, max=4.0),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
@@ -281,10 +287,10 @@ class Backprojection(Technique):
            {"bp_blend": True}, {"bp_query_growth": True}, {"bp_primitive": "MICRORECT"},
            {"bp_refinement": "YSM"},
            {"bp_primitive": "MICRORECT", "bp_refinement": "YSM", "bp_blend": True, "bp_query_growth": True}]
-        # Ours: coarse micro-occluders refitted to their occluding finer parts (MEAN, the default), and the
-        # papers' whole cell at its minimum depth; the coverage shrink off; the near-field split on (off by default).
-        + [{"bp_coarse_fit": "NONE"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "DEPTH"},
-           {"bp_coverage": False}, {"bp_split": 0.15}, {"bp_split": 0.3}])
+        # Ours: coarse micro-occluders refitted to their occluding finer parts (PLANE, the default), and the
+        # papers' whole cell at its minimum depth; the coverage shrink off; the near-field split finer or off.
+        + [{"bp_coarse_fit": "NONE"}, {"bp_coarse_fit": "EXTENT"}, {"bp_coarse_fit": "MEAN"},
+           {"bp_coarse_fit": "DEPTH"}, {"bp_coverage": False}, {"bp_split": 0.15}, {"bp_split": 0.0}])
 
     def settings_of(self, s) -> dict:
         return {o.name: s.option(o.name) for o in self.options}
@@ -408,7 +414,11 @@ class Backprojection(Technique):
         with frame.timings.stage("bp_gather"):
             worst = gather_cells_bound((w, h), len(maps), int(primitive == PRIMITIVE_MICROQUAD), budget_mode,
                                        force, budget_max_of(o), blend, levels)
-            chunks = 1 if light.is_delta else loops.chunk_count(worst, CHUNK_CELLS)
+            # The near-field split's two loops run for every micro-occluder, even where they split nothing
+            # (llvmpipe counts them: with b = ∞ the split's mere presence changed the visibility), so with the
+            # split a dispatch takes a third of the cells.
+            chunk_cells = CHUNK_CELLS // 3 if defines["SPLIT"] else CHUNK_CELLS
+            chunks = 1 if light.is_delta else loops.chunk_count(worst, chunk_cells)
             if chunks == 1:
                 frame.dispatch("backprojection/visibility.comp", uniforms, samplers=samplers, images=images,
                                defines=defines)
@@ -418,7 +428,7 @@ class Backprojection(Technique):
                 for k in range(chunks):
                     frame.progress.check()
                     frame.dispatch("backprojection/visibility.comp",
-                                   {**uniforms, **loops.chunk_uniforms(k, chunks, CHUNK_CELLS)},
+                                   {**uniforms, **loops.chunk_uniforms(k, chunks, chunk_cells)},
                                    samplers=samplers, images=images, defines={**defines, "CHUNKED": 1},
                                    buffers={4: state})
             lc.stats["gather_dispatches"] = chunks

@@ -144,6 +144,7 @@ struct Pixel {
     vec2 tex;
     vec3 shading;       // shading normal in the view's frame (the sample weights' horizon)
     ivec2 px;           // its image pixel
+    bool centre_lit;    // the depth map sees the receiver: nothing hides the light's centre from it
 };
 
 // Occlusion gathered so far: the N×N bitmask of light samples hidden (§3) and the summed occluded fraction
@@ -416,17 +417,20 @@ bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
 // only the mean depth. The parts: a micropatch's 2×2 cells of level l − 1; a microrect's level-(l − 1)
 // microrects among 2c + {−1, 0, 1}² whose reference point (level-0 texel j·2^(l−1)) lies in its extent,
 // which holds every microrect merged into it (each holds its own reference point, and the merge unites
-// extents), clipped to that extent. False: no part occludes.
+// extents), clipped to that extent. REFIT_PLANE is REFIT_MEAN plus the parts' depth slope (see
+// backproject_tilted), returned in `slope` (depth per level-0 texel in x and y, and the parts' nearest depth;
+// zero slope for the other refits). False: no part occludes.
 #if PRIMITIVE == PRIMITIVE_MICRORECT
 const int REFIT_PARTS = 9;
 #else
 const int REFIT_PARTS = 4;
 #endif
 
-bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, inout vec2 p1) {
+bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, inout vec2 p1, out vec3 slope) {
     int f = l - 1;
     vec2 lo = vec2(NO_OCCLUDER), hi = vec2(-NO_OCCLUDER);
     float zmin = NO_OCCLUDER, zsum = 0.0, n = 0.0;
+    vec2 xsum = vec2(0.0), xzsum = vec2(0.0), xxsum = vec2(0.0);   // part centres, from the cell's corner
     for (int k = 0; k < REFIT_PARTS; ++k) {
 #if PRIMITIVE == PRIMITIVE_MICRORECT
         ivec2 j = 2 * c + ivec2(k % 3 - 1, k / 3 - 1);
@@ -447,8 +451,19 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
         zmin = min(zmin, zc);
         zsum += zc;
         n += 1.0;
+        vec2 x = 0.5 * (q0 + q1) - p0;
+        xsum += x;
+        xzsum += x * zc;
+        xxsum += x * x;
     }
+    slope = vec3(0.0, 0.0, zmin);
     if (n == 0.0) return false;
+#if REFIT == REFIT_PLANE
+    // Least-squares slope of the parts' depths, per axis (the parts lie on a grid, so the axes decouple).
+    vec2 xm = xsum / n, spread = xxsum / n - xm * xm;
+    slope.xy = mix(vec2(0.0), (xzsum / n - xm * (zsum / n)) / max(spread, vec2(1e-12)),
+                   greaterThan(spread, vec2(1e-6)));
+#endif
     if (REFIT != REFIT_DEPTH) {
         p0 = lo;
         p1 = hi;
@@ -457,6 +472,7 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
     return true;
 }
 #endif
+
 
 #if COVERAGE
 vec4 cov_fetch(int layer, int l, ivec2 c) {
@@ -516,6 +532,52 @@ vec2 backproject(Pixel p, vec2 w, float z) {
     return (w - p.tp) * k_of(p, z) / u_light_half;
 }
 
+#if REFIT == REFIT_PLANE
+// Depth gap, as a share of the receiver's depth, that a tilted micro-occluder's corner keeps in front of the
+// receiver where its plane reaches it (the surface meets the receiver: a wall's foot, a ball's contact).
+const float CONTACT_GAP = 1e-3;
+
+// Tilted coarse micro-occluder (REFIT_PLANE, ours). A coarse cell over a surface the light meets at a grazing
+// angle (a wall's face, a ball's flank) spans a wide depth range; as one plate at one depth it stands out of
+// that surface by up to the whole range, and next to the receiver 1/(d − z) magnifies the difference into a
+// wrong share of the light: dark dashes along a wall's foot, light leaking under a ball. Tilted by its
+// parts' depth slope, the plate follows the surface: each corner of [p0, p1) at the plane's depth through
+// the mean z at the box centre, no nearer than the nearest part, no deeper than the receiver there; the
+// quad backprojected as microquads are (the axis-aligned rectangle through its edges' midpoints, Schwarz &
+// Stamminger 2007, §4, Fig. 6). A flat cell keeps the rectangle [a, b] it has.
+void backproject_tilted(Pixel p, vec2 p0, vec2 p1, float z, vec3 slope, inout vec2 a, inout vec2 b) {
+    if (slope.x == 0.0 && slope.y == 0.0) return;
+    vec2 mid = 0.5 * (p0 + p1);
+    vec2 v[4];
+    for (int i = 0; i < 4; ++i) {
+        vec2 q = vec2((i & 1) == 0 ? p0.x : p1.x, (i >> 1) == 0 ? p0.y : p1.y);
+        float deepest = min(receiver_depth_at(p.r, q), p.d) * (1.0 - CONTACT_GAP);
+        float zq = clamp(z + dot(slope.xy, q - mid), min(slope.z, deepest), deepest);
+        v[i] = backproject(p, window_at(p, q), zq);
+    }
+    vec2 ml = 0.5 * (v[0] + v[2]), mr = 0.5 * (v[1] + v[3]);
+    vec2 mb = 0.5 * (v[0] + v[1]), mt = 0.5 * (v[2] + v[3]);
+    a = vec2(min(ml.x, mr.x), min(mb.y, mt.y));
+    b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
+}
+#endif
+
+#if REFIT != REFIT_NONE
+// Centre clip (ours, with the coarse refits). A receiver the depth map sees has nothing between it and the
+// light's centre, so no occluder's light rectangle may hold the centre (light coordinates 0). A coarse
+// micro-occluder whose box holds the receiver's own map position (a cell across a wall's foot: the wall and
+// the ground in front of it) does hold it, and next to the receiver covers the whole light. Its rectangle
+// is cut at the centre on the side where the box lies, along the axis in which the box's middle is farthest
+// from the receiver in units of the box's size.
+void clear_centre(Pixel p, vec2 p0, vec2 p1, inout vec2 a, inout vec2 b) {
+    if (!p.centre_lit || any(greaterThanEqual(a, vec2(0.0))) || any(lessThanEqual(b, vec2(0.0)))) return;
+    vec2 off = (window_at(p, 0.5 * (p0 + p1)) - p.tp) / max(abs((p1 - p0) * p.tex), vec2(1e-12));
+    int axis = abs(off.x) >= abs(off.y) ? 0 : 1;
+    if (off[axis] >= 0.0) a[axis] = 0.0;
+    else b[axis] = 0.0;
+}
+#endif
+
 // Micropatch of cell c (level l): the cell's square at its (minimum) depth, parallel to the light. Gap
 // filling (GBP06): when the left (bottom) neighbour is an occluder too, the patch's left (bottom) edge is
 // extended to where that neighbour's right (top) edge backprojects, closing the gap between them. False
@@ -531,7 +593,8 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
 #endif
 #if REFIT != REFIT_NONE
-    if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
+    vec3 slope = vec3(0.0);
+    if (l > 0 && !refit(p, layer, l, c, z, p0, p1, slope)) return false;
 #endif
 #if COVERAGE
     if (l > 0 && !cover(p, layer, l, c, p0, p1)) return false;
@@ -539,6 +602,9 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
     b = backproject(p, w1, z);
+#if REFIT == REFIT_PLANE
+    if (l > 0) backproject_tilted(p, p0, p1, z, slope, a, b);
+#endif
 #if GAP_FILL
     float zl = cell_depth(layer, l, c - ivec2(1, 0));
     if (cell_occludes(p, zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
@@ -546,6 +612,9 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     float zb = cell_depth(layer, l, c - ivec2(0, 1));
     if (cell_occludes(p, zb, p0 - vec2(0.0, s), vec2(p1.x, p0.y), l))
         a.y = min(a.y, (w0.y - p.tp.y) * k_of(p, zb) / u_light_half.y);
+#endif
+#if REFIT != REFIT_NONE
+    if (l > 0) clear_centre(p, p0, p1, a, b);
 #endif
 #if NEED_AREA
     area = rect_area(a, b);
@@ -567,7 +636,8 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
 #endif
 #if REFIT != REFIT_NONE
-    if (l > 0 && !refit(p, layer, l, c, z, p0, p1)) return false;
+    vec3 slope = vec3(0.0);
+    if (l > 0 && !refit(p, layer, l, c, z, p0, p1, slope)) return false;
 #endif
 #if COVERAGE
     if (l > 0 && !cover(p, layer, l, c, p0, p1)) return false;
@@ -575,6 +645,9 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
     b = backproject(p, w1, z);
+#if REFIT == REFIT_PLANE
+    if (l > 0) backproject_tilted(p, p0, p1, z, slope, a, b);
+#endif
 #if GAP_FILL
     vec4 el, eb;
     float zl = rect_depth(layer, l, c - ivec2(1, 0), el);
@@ -583,6 +656,9 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     float zb = rect_depth(layer, l, c - ivec2(0, 1), eb);
     if (eb.w >= p0.y && cell_occludes(p, zb, eb.xy, min(eb.zw, vec2(u_map_size)), l))
         a.y = min(a.y, (w0.y - p.tp.y) * k_of(p, zb) / u_light_half.y);
+#endif
+#if REFIT != REFIT_NONE
+    if (l > 0) clear_centre(p, p0, p1, a, b);
 #endif
 #if NEED_AREA
     area = rect_area(a, b);
@@ -656,6 +732,11 @@ Pixel make_pixel(ivec2 px) {
     p.tp = window_coords(p.r.local);
     p.shading = view_direction(texelFetch(g_normal, px, 0).xyz);
     p.px = px;
+#if REFIT != REFIT_NONE
+    p.centre_lit = map_lit_plane(u_depth, ivec2(floor(p.r.map.xy)), p.r) > 0.5;
+#else
+    p.centre_lit = false;
+#endif
     return p;
 }
 
