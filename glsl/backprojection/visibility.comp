@@ -532,6 +532,16 @@ vec2 backproject(Pixel p, vec2 w, float z) {
     return (w - p.tp) * k_of(p, z) / u_light_half;
 }
 
+// The axis-aligned rectangle [a, b] through the midpoints of the edges of the quad v (v[0] = (0,0),
+// v[1] = (1,0), v[2] = (0,1), v[3] = (1,1)): how a microquad or a tilted micro-occluder enters the bitmask
+// (Schwarz & Stamminger 2007, §4, Fig. 6 right).
+void midpoint_rect(vec2 v[4], out vec2 a, out vec2 b) {
+    vec2 ml = 0.5 * (v[0] + v[2]), mr = 0.5 * (v[1] + v[3]);
+    vec2 mb = 0.5 * (v[0] + v[1]), mt = 0.5 * (v[2] + v[3]);
+    a = vec2(min(ml.x, mr.x), min(mb.y, mt.y));
+    b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
+}
+
 #if REFIT == REFIT_PLANE
 // Depth gap, as a share of the receiver's depth, that a tilted micro-occluder's corner keeps in front of the
 // receiver where its plane reaches it (the surface meets the receiver: a wall's foot, a ball's contact).
@@ -555,10 +565,7 @@ void backproject_tilted(Pixel p, vec2 p0, vec2 p1, float z, vec3 slope, inout ve
         float zq = clamp(z + dot(slope.xy, q - mid), min(slope.z, deepest), deepest);
         v[i] = backproject(p, window_at(p, q), zq);
     }
-    vec2 ml = 0.5 * (v[0] + v[2]), mr = 0.5 * (v[1] + v[3]);
-    vec2 mb = 0.5 * (v[0] + v[1]), mt = 0.5 * (v[2] + v[3]);
-    a = vec2(min(ml.x, mr.x), min(mb.y, mt.y));
-    b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
+    midpoint_rect(v, a, b);
 }
 #endif
 
@@ -684,10 +691,7 @@ bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
         v[i] = backproject(p, window_at(p, pos), z);
     }
     // v[0] = (0,0), v[1] = (1,0), v[2] = (0,1), v[3] = (1,1)
-    vec2 ml = 0.5 * (v[0] + v[2]), mr = 0.5 * (v[1] + v[3]);
-    vec2 mb = 0.5 * (v[0] + v[1]), mt = 0.5 * (v[2] + v[3]);
-    a = vec2(min(ml.x, mr.x), min(mb.y, mt.y));
-    b = vec2(max(ml.x, mr.x), max(mb.y, mt.y));
+    midpoint_rect(v, a, b);
 #if NEED_AREA
     if (u_round == 1) {
         area = disk_fraction(a, b);
