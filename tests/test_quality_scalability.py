@@ -161,13 +161,15 @@ def test_near_field_split_removes_the_coarse_levels_contact_error():
     penumbra's error; split into its finer parts while it is that wide, it darkens as its texels do. Budget 4
     on a 256² map (the levels b = 16 takes on a 1024² map), microrects, mean |error| against level 0 (b = ∞)
     over shadowed pixels: split off 0.048, bp_split 0.3 (the default) 0.030, 0.15 0.017 (measured with the MEAN
-    refit)."""
+    refit). One depth layer, the layer the split works on: with the default second layer the coarse levels err
+    more against level 0 (PLANE refit: 0.039 → 0.048 split off, 0.012 → 0.023 at 0.15), since a peeled layer's
+    partly covering coarse micro-occluders are left out while level 0 keeps its texels."""
     snap = contact_scene()
-    v0 = _vis(snap, bp(bp_budget_map="UNBOUNDED"))
+    v0 = _vis(snap, bp(bp_budget_map="UNBOUNDED", bp_layers=1))
     assert (v0 < 0.99).sum() > 300
     err = {}
     for split in (0.0, 0.15):
-        v = _vis(snap, bp(bp_budget=4, bp_split=split))
+        v = _vis(snap, bp(bp_budget=4, bp_split=split, bp_layers=1))
         m = (v0 < 0.99) | (v < 0.99)
         err[split] = float(np.mean(np.abs(v - v0)[m]))
     assert err[0.0] > 0.03, err                     # the coarse levels do err at the contacts

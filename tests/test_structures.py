@@ -3,6 +3,7 @@ view in dependency order, each reporting its memory; techniques themselves hold 
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from penumbra.engine import structures
@@ -14,6 +15,31 @@ from penumbra.tests.synthetic import floating_plane
 
 ROOT = Path(__file__).resolve().parent.parent
 
+
+def _solids_over_ground(parts, closed=True):
+    """floating_plane's ground, light and camera with `parts` (triangle arrays) as objects of their own, all
+    marked watertight or not."""
+    from penumbra.engine.core.snapshot import ObjectInfo, SceneSnapshot
+    base = floating_plane(32)
+    ground = base.positions[base.object_id == 0]
+    tris = [ground] + [np.asarray(p, np.float32) for p in parts]
+    positions = np.concatenate(tris)
+    n = np.cross(positions[:, 1] - positions[:, 0], positions[:, 2] - positions[:, 0])
+    normals = np.repeat((n / np.linalg.norm(n, axis=1, keepdims=True))[:, None], 3, axis=1).astype(np.float32)
+    object_id = np.concatenate([np.full(len(t), i, np.int32) for i, t in enumerate(tris)])
+    objects = [ObjectInfo("Ground")] + [ObjectInfo(f"Part{i}", closed=closed) for i in range(len(parts))]
+    return SceneSnapshot(positions, normals, object_id, np.full((len(positions), 3), 0.8, np.float32),
+                         objects, base.lights, base.camera, name="solids_over_ground")
+
+
+
+def _stacked_boxes():
+    """Three closed boxes over the ground, each hidden from the light's centre by the wider one above it: the
+    depth map and two peeled layers all hold occluders. All wider than the light, so that no side face is lit
+    (one light view)."""
+    from penumbra.engine.measure.stress import box
+    return _solids_over_ground([box((-0.8, -0.8, 1.4), (0.8, 0.8, 1.5)), box((-0.7, -0.7, 1.0), (0.7, 0.7, 1.1)),
+                                box((-0.6, -0.6, 0.5), (0.6, 0.6, 0.6))])
 
 def test_plan_puts_requirements_first_once_and_keeps_asked_parameters():
     order = structures.plan([need("hsm", mssm_first=True), need("peeled_layers", layers=3), "mssm"])
@@ -50,7 +76,7 @@ def _counting(monkeypatch):
 
 def test_options_decide_the_structures_and_each_is_built_once_per_light_view(monkeypatch):
     calls = _counting(monkeypatch)
-    snap = floating_plane(32)
+    snap = _stacked_boxes()
     # Micropatches read the hierarchy itself (the default microrects add their own structure, checked below).
     base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64).with_(bp_primitive="MICROPATCH")
     r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=3, bp_coverage=False))
@@ -61,7 +87,7 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     assert memory["peeled_layers"] == 2 * depth       # two layers behind the depth map, same texel format
     assert memory["hsm"] > 3 * 2 * depth               # an RG32F pyramid (≥ 4/3 of a level) per layer
     calls.clear()
-    r = pipeline.render(snap, base.with_(bp_refinement="MSSM", bp_coverage=False))
+    r = pipeline.render(snap, base.with_(bp_refinement="MSSM", bp_coverage=False, bp_layers=1))
     assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "mssm": 1}
     memory = r.stats["structure_bytes"]
     assert memory["hsm"] == 0                          # layer 0 reads the MSSM, which holds every level
@@ -74,7 +100,8 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     assert memory["microrects"] == 2 * (4 + 16 + 16) * (64 * 64 * 4 - 1) // 3   # two layers, R32F + RGBA32F chains
     # …plus (bp_coverage, the default) the RGBA32F member statistics; without it the two chains alone.
     calls.clear()
-    r = pipeline.render(snap, base.with_(bp_refinement="YSM", bp_primitive="MICRORECT", bp_coverage=False))
+    r = pipeline.render(snap, base.with_(bp_refinement="YSM", bp_primitive="MICRORECT", bp_coverage=False,
+                                         bp_layers=1))
     assert r.stats["structure_bytes"]["microrects"] == (4 + 16) * (64 * 64 * 4 - 1) // 3
     # Micropatches with coverage read one RGBA32F coverage pyramid per layer; microquads need none.
     calls.clear()
@@ -105,3 +132,34 @@ def test_techniques_hold_no_raw_gl_state(path):
     hits = [f"{path.name}:{i}: {line.strip()}" for i, line in enumerate(path.read_text().splitlines(), 1)
             if RAW_GL.search(line)]
     assert not hits, "raw GL state in a technique (move it to gpu/ or structures/):\n" + "\n".join(hits)
+
+
+def test_peeling_leaves_out_a_solids_far_side_and_the_bare_ground():
+    """A floating box wider than the light: from every light point its outline is its top face's rim, so its
+    far side (bottom, sides turned away from the centre) adds no occluder, and the ground seen under it has
+    nothing behind it. A second layer holds nothing to shadow with, so none is kept and the frame is the
+    one-layer frame. The same box not known to be closed keeps its bottom face as a layer."""
+    from penumbra.engine.measure.stress import box
+    base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64)
+    solid = _solids_over_ground([box((-0.8, -0.8, 0.8), (0.8, 0.8, 1.0))])
+    one = pipeline.render(solid, base.with_(bp_layers=1))
+    two = pipeline.render(solid, base.with_(bp_layers=2))
+    assert two.stats["structure_bytes"]["peeled_layers"] == 0
+    assert np.array_equal(one.passes["Visibility"], two.passes["Visibility"])
+    assert (one.passes["Visibility"][..., 0] < 0.5).any()
+    shell = _solids_over_ground([box((-0.8, -0.8, 0.8), (0.8, 0.8, 1.0))], closed=False)
+    assert pipeline.render(shell, base.with_(bp_layers=2)).stats["structure_bytes"]["peeled_layers"] > 0
+    # Narrower than the light, the box's sides turned away from the centre lie on its outline seen from the
+    # light's far edge: they are peeled.
+    narrow = _solids_over_ground([box((-0.3, -0.3, 0.8), (0.3, 0.3, 1.0))])
+    assert pipeline.render(narrow, base.with_(bp_layers=2)).stats["structure_bytes"]["peeled_layers"] > 0
+
+
+def test_peeling_keeps_a_solid_hidden_from_the_light_centre():
+    """A small box right under a wider one is hidden from the light's centre, with the ground behind it: the
+    second layer holds it (the single-silhouette case of Schwarz & Stamminger 2007, §3.2)."""
+    from penumbra.engine.measure.stress import box
+    base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64)
+    stacked = _solids_over_ground([box((-0.5, -0.5, 1.0), (0.5, 0.5, 1.1)), box((-0.3, -0.3, 0.5), (0.3, 0.3, 0.6))])
+    r = pipeline.render(stacked, base.with_(bp_layers=2))
+    assert r.stats["structure_bytes"]["peeled_layers"] == r.stats["structure_bytes"]["depth_map"]

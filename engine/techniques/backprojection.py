@@ -261,7 +261,10 @@ class Backprojection(Technique):
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),
         Option("bp_filter_passes", 0, "Filter passes",
                "Post-filter passes of the bitmask visibility driven by the area values (§3.1)", min=0, max=16),
-        Option("bp_layers", 1, "Depth layers", "Depth-peeled layers from the light centre (§3.2)", min=1, max=4),
+        Option("bp_layers", 2, "Depth layers", "Depth-peeled layers from the light centre (§3.2): occluders the "
+               "centre cannot see (a plate under a wider one) still shadow. Of a closed object only faces the "
+               "light can see on its outline are peeled, and a layer with nothing behind it is left out",
+               min=1, max=4),
         Option("bp_weighting", "IRRADIANCE", "Sample weights", "How the bitmask's light samples are counted",
                items=(("IRRADIANCE", "Irradiance", "Each light sample weighted by its unoccluded contribution "
                        "at the receiver (cosines over squared distance): the visibility Cycles measures"),
@@ -280,7 +283,7 @@ class Backprojection(Technique):
          for a, p in (("AREA", "MICROPATCH"), ("AREA", "MICROQUAD"), ("BITMASK_8", "MICROPATCH"),
                       ("BITMASK_16", "MICROPATCH"), ("BITMASK_16J", "MICROPATCH"), ("BITMASK_32", "MICROPATCH"),
                       ("BITMASK_16J", "MICROQUAD"))]
-        + [{"bp_refinement": "NONE"}, {"bp_layers": 2}, {"bp_filter_passes": 5}, {"bp_budget": 8},
+        + [{"bp_refinement": "NONE"}, {"bp_layers": 1}, {"bp_filter_passes": 5}, {"bp_budget": 8},
            {"bp_budget": 32}, {"bp_gap_fill": False}, {"shadow_map_size": 512}, {"shadow_map_size": 2048}]
         # Schwarz & Stamminger 2008: budget maps, blending, over-precision fix, microrects, YSM.
         + [{"bp_budget_map": "UNBOUNDED"}, {"bp_budget_map": "BORDER", "bp_budget": 12, "bp_budget_border": 5},

@@ -28,7 +28,7 @@ from ...core.settings import RenderSettings
 
 # The 2007 paper's configuration (the technique's own defaults now include the 2008 paper's blending and YSM).
 DEFAULT = {"bp_accumulation": "BITMASK_16J", "bp_primitive": "MICROPATCH", "bp_refinement": "MSSM", "bp_budget": 16,
-           "bp_blend": False, "bp_query_growth": False}
+           "bp_blend": False, "bp_query_growth": False, "bp_layers": 1}
 
 
 def combinations(quick: bool = False) -> list[dict]:
