@@ -145,6 +145,7 @@ def test_peeling_leaves_out_a_solids_far_side_and_the_bare_ground():
     one = pipeline.render(solid, base.with_(bp_layers=1))
     two = pipeline.render(solid, base.with_(bp_layers=2))
     assert two.stats["structure_bytes"]["peeled_layers"] == 0
+    assert [s["depth_layers"] for s in two.stats["per_light"]] == [1]
     assert np.array_equal(one.passes["Visibility"], two.passes["Visibility"])
     assert (one.passes["Visibility"][..., 0] < 0.5).any()
     shell = _solids_over_ground([box((-0.8, -0.8, 0.8), (0.8, 0.8, 1.0))], closed=False)
@@ -163,3 +164,4 @@ def test_peeling_keeps_a_solid_hidden_from_the_light_centre():
     stacked = _solids_over_ground([box((-0.5, -0.5, 1.0), (0.5, 0.5, 1.1)), box((-0.3, -0.3, 0.5), (0.3, 0.3, 0.6))])
     r = pipeline.render(stacked, base.with_(bp_layers=2))
     assert r.stats["structure_bytes"]["peeled_layers"] == r.stats["structure_bytes"]["depth_map"]
+    assert [s["depth_layers"] for s in r.stats["per_light"]] == [2]

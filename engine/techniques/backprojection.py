@@ -435,6 +435,7 @@ class Backprojection(Technique):
                                    samplers=samplers, images=images, defines={**defines, "CHUNKED": 1},
                                    buffers={4: state})
             lc.stats["gather_dispatches"] = chunks
+            lc.stats["depth_layers"] = len(maps)        # after peeling: fewer than bp_layers where one was empty
         if filter_passes:
             with frame.timings.stage("bp_filter"):
                 tmp = frame.texture(size, 1)
