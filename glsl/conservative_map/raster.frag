@@ -10,7 +10,9 @@ flat in vec2 g_v2;
 flat in vec3 g_eta;
 flat in vec2 g_grad;
 flat in uint g_codes;
-flat in mat3 g_edges;
+flat in vec3 g_edge0;     // raster.geom: per edge, its unit normal xy and its line's offset
+flat in vec3 g_edge1;
+flat in vec3 g_edge2;
 flat in vec3 g_third;
 flat in int g_fast;
 
@@ -68,9 +70,10 @@ bool overlaps_texel_fast(vec2 centre, vec2 a, vec2 b, vec2 c) {
     vec2 lo = min(a, min(b, c)), hi = max(a, max(b, c));
     if (any(greaterThan(lo, vec2(0.5))) || any(lessThan(hi, vec2(-0.5)))) return false;
     for (int i = 0; i < 3; ++i) {
-        vec2 axis = g_edges[i].xy;
+        vec3 edge = i == 0 ? g_edge0 : i == 1 ? g_edge1 : g_edge2;
+        vec2 axis = edge.xy;
         float at = dot(axis, centre);
-        float base = g_edges[i].z - at, third = g_third[i] - at;
+        float base = edge.z - at, third = g_third[i] - at;
         float h = 0.5 * (abs(axis.x) + abs(axis.y)) + 1e-4;
         if (min(base, third) > h || max(base, third) < -h) return false;
     }

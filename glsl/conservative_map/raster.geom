@@ -14,9 +14,11 @@ flat out vec2 g_v2;
 flat out vec3 g_eta;    // nearness η at each vertex (glsl/conservative_map/texel.glsl): affine across the map
 flat out vec2 g_grad;   // dη per texel of the triangle's plane (0 for an edge-on triangle)
 flat out uint g_codes;  // its two quantised slopes, x in bits 8–15, y in bits 0–7
-flat out mat3 g_edges;  // per edge (column): unit normal xy and its line's offset; the opposite vertex in
-flat out vec3 g_third;  // g_third. Only for triangles within a few map sizes (g_fast), else the fragment
-flat out int g_fast;    // stage measures from the near endpoint itself.
+flat out vec3 g_edge0;  // per edge: unit normal xy and its line's offset; the opposite vertex in g_third.
+flat out vec3 g_edge1;  // Only for triangles within a few map sizes (g_fast), else the fragment stage
+flat out vec3 g_edge2;  // measures from the near endpoint itself. Three vectors, not a flat mat3: NVIDIA's
+flat out vec3 g_third;  // compiler (driver 580, H200) crashed linking a matrix passed from geometry to
+flat out int g_fast;    // fragment stage (tests/test_shader_interfaces.py keeps interfaces matrix-free).
 
 vec2 to_texels(vec4 clip) {
     return (clip.xy / clip.w * 0.5 + 0.5) * vec2(u_map_size);
@@ -41,7 +43,7 @@ int t_fast;
 
 void emit_flat(vec2 ta, vec2 tb, vec2 tc, vec3 eta, vec2 p) {
     g_v0 = ta; g_v1 = tb; g_v2 = tc; g_eta = eta; g_grad = t_grad; g_codes = t_codes;
-    g_edges = t_edges; g_third = t_third; g_fast = t_fast;
+    g_edge0 = t_edges[0]; g_edge1 = t_edges[1]; g_edge2 = t_edges[2]; g_third = t_third; g_fast = t_fast;
     gl_Position = vec4(p / vec2(u_map_size) * 2.0 - 1.0, 0.0, 1.0);
     EmitVertex();
 }
