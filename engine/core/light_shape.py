@@ -17,7 +17,7 @@ import numpy as np
 
 from .irradiance import spot_edge_tans
 from .shading import SUN_MAX_HALF
-from .snapshot import AREA, DISK, ELLIPSE, SPOT, SUN, Light
+from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 
 
 def penumbra_spread(z, d, ortho: bool):
@@ -86,9 +86,12 @@ def weighted_sun_half(light: Light, half) -> tuple:
 
 def light_shape_uniforms(light: Light, view) -> dict:
     """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun), whether it
-    is round (disk, ellipse, sphere, sun) or rectangular, and whether it is a one-sided planar emitter and
-    its emission axis in the view's frame: what filter kernels, samplers and their weights need."""
+    is round (disk, ellipse, sphere, sun) or rectangular, whether it is a one-sided planar emitter and
+    its emission axis in the view's frame, and whether it is a sphere (a point or spot light with a radius,
+    whose footprint on the light plane depends on the receiver: light_view.glsl light_footprint): what
+    filter kernels, samplers and their weights need."""
     round_ = light.kind != AREA or light.shape in (DISK, ELLIPSE)
     emit = np.asarray(view.view, float)[:3, :3] @ np.asarray(light.direction, float)
     return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(round_),
-            "u_light_one_sided": int(light.kind == AREA), "u_light_emit": tuple(float(x) for x in emit)}
+            "u_light_one_sided": int(light.kind == AREA), "u_light_emit": tuple(float(x) for x in emit),
+            "u_light_sphere": int(light.kind in (POINT, SPOT) and light.radius > 0.0)}

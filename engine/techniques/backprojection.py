@@ -378,8 +378,7 @@ class Backprojection(Technique):
                     "u_budget_low": float(o["bp_budget_low"]),
                     "u_force_level": force, **ysm_uniforms,
                     "u_mssm_levels": int(n_mssm),
-                    "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {}),
-                    "u_valid_count": float(max(valid.sum(), 1))}
+                    "u_jitter_x": jx, "u_jitter_y": jy, **({"u_valid": _mask_rows(valid)} if bits else {})}
         info = frame.texture(size, 4)
         images = {0: out, 1: info}
         rgb_tex = None

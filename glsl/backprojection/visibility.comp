@@ -84,7 +84,6 @@ uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per c
 #if BITS > 0
 uniform uint u_valid[BITS];     // per bitmask row: samples inside the light's shape
 #endif
-uniform float u_valid_count;
 #if SPLIT
 uniform float u_split;          // a coarse micro-occluder wider on the light than this share of it is split
 uniform int u_split_extra;      // at most this many finer micro-occluders per pixel and gather from splits
@@ -145,6 +144,8 @@ struct Pixel {
     vec3 shading;       // shading normal in the view's frame (the sample weights' horizon)
     ivec2 px;           // its image pixel
     bool centre_lit;    // the depth map sees the receiver: nothing hides the light's centre from it
+    Footprint fp;       // the light on the light plane as this receiver sees it (light_view.glsl)
+    vec2 centre_n;      // the light's centre in light coordinates: −fp.centre / fp.half_box
 };
 
 // Occlusion gathered so far: the N×N bitmask of light samples hidden (§3) and the summed occluded fraction
@@ -213,7 +214,7 @@ float rect_depth(int layer, int l, ivec2 c, out vec4 ext) {
 // capped at 1e7 texels so that an occluder on the light plane gives a huge but finite area.
 vec2 search_half(Pixel p, float z) {
     float s = penumbra_spread_clamped(z, p.d, u_light_ortho);
-    return min(u_light_half * s / p.tex, vec2(1.0e7));
+    return min((abs(p.fp.centre) + p.fp.half_box) * s / p.tex, vec2(1.0e7));
 }
 
 // Texel range [lo, hi] (inclusive, level 0) of the search area for occluders no nearer than z; false if
@@ -539,9 +540,10 @@ vec2 window_at(Pixel p, vec2 pos) {
     return u_light_window.xz + pos * p.tex;
 }
 
-// Light coordinates of the window point w at depth z (§2.1 backprojection, see the header).
+// Light coordinates of the window point w at depth z (§2.1 backprojection, see the header): [−1, 1]² is the
+// bounding box of the receiver's footprint of the light.
 vec2 backproject(Pixel p, vec2 w, float z) {
-    return (w - p.tp) * k_of(p, z) / u_light_half;
+    return ((w - p.tp) * k_of(p, z) - p.fp.centre) / p.fp.half_box;
 }
 
 // The axis-aligned rectangle [a, b] through the midpoints of the edges of the quad v (v[0] = (0,0),
@@ -589,11 +591,12 @@ void backproject_tilted(Pixel p, vec2 p0, vec2 p1, float z, vec3 slope, inout ve
 // is cut at the centre on the side where the box lies, along the axis in which the box's middle is farthest
 // from the receiver in units of the box's size.
 void clear_centre(Pixel p, vec2 p0, vec2 p1, inout vec2 a, inout vec2 b) {
-    if (!p.centre_lit || any(greaterThanEqual(a, vec2(0.0))) || any(lessThanEqual(b, vec2(0.0)))) return;
+    vec2 c = p.centre_n;
+    if (!p.centre_lit || any(greaterThanEqual(a, c)) || any(lessThanEqual(b, c))) return;
     vec2 off = (window_at(p, 0.5 * (p0 + p1)) - p.tp) / max(abs((p1 - p0) * p.tex), vec2(1e-12));
     int axis = abs(off.x) >= abs(off.y) ? 0 : 1;
-    if (off[axis] >= 0.0) a[axis] = 0.0;
-    else b[axis] = 0.0;
+    if (off[axis] >= 0.0) a[axis] = c[axis];
+    else b[axis] = c[axis];
 }
 #endif
 
@@ -627,10 +630,10 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
 #if GAP_FILL
     float zl = cell_depth(layer, l, c - ivec2(1, 0));
     if (cell_occludes(p, zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
-        a.x = min(a.x, (w0.x - p.tp.x) * k_of(p, zl) / u_light_half.x);
+        a.x = min(a.x, backproject(p, w0, zl).x);
     float zb = cell_depth(layer, l, c - ivec2(0, 1));
     if (cell_occludes(p, zb, p0 - vec2(0.0, s), vec2(p1.x, p0.y), l))
-        a.y = min(a.y, (w0.y - p.tp.y) * k_of(p, zb) / u_light_half.y);
+        a.y = min(a.y, backproject(p, w0, zb).y);
 #endif
 #if REFIT != REFIT_NONE
     if (l > 0) clear_centre(p, p0, p1, a, b);
@@ -671,10 +674,10 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     vec4 el, eb;
     float zl = rect_depth(layer, l, c - ivec2(1, 0), el);
     if (el.z >= p0.x && cell_occludes(p, zl, el.xy, min(el.zw, vec2(u_map_size)), l))
-        a.x = min(a.x, (w0.x - p.tp.x) * k_of(p, zl) / u_light_half.x);
+        a.x = min(a.x, backproject(p, w0, zl).x);
     float zb = rect_depth(layer, l, c - ivec2(0, 1), eb);
     if (eb.w >= p0.y && cell_occludes(p, zb, eb.xy, min(eb.zw, vec2(u_map_size)), l))
-        a.y = min(a.y, (w0.y - p.tp.y) * k_of(p, zb) / u_light_half.y);
+        a.y = min(a.y, backproject(p, w0, zb).y);
 #endif
 #if REFIT != REFIT_NONE
     if (l > 0) clear_centre(p, p0, p1, a, b);
@@ -726,7 +729,25 @@ bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
 float sample_weight(Pixel p, int l, int k) {
     float n = float(BITS);
     vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
-    return light_sample_weight(p.r, p.shading, q);
+    return light_sample_weight(p.r, p.shading, p.fp.centre + p.fp.half_box * q);
+}
+#endif
+
+#if BITS > 0
+// Bitmask row l's samples that stand for points of the light: the light's shape (u_valid) for planar lights
+// and suns; for a sphere, those inside this receiver's footprint ellipse, which touches the sides of the
+// light coordinates' box [−1, 1]² (sample positions as in sample_weight). `to_kernel` takes light coordinates
+// to the kernel's unit disk.
+uint valid_row(mat2 to_kernel, int l) {
+    if (u_light_sphere == 0) return u_valid[l];
+    float n = float(BITS);
+    uint m = 0u;
+    for (int k = 0; k < BITS; ++k) {
+        vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
+        vec2 e = to_kernel * q;
+        if (dot(e, e) <= 1.0) m |= 1u << uint(k);
+    }
+    return m;
 }
 #endif
 
@@ -748,6 +769,8 @@ Pixel make_pixel(ivec2 px) {
     p.tp = window_coords(p.r.local);
     p.shading = view_direction(texelFetch(g_normal, px, 0).xyz);
     p.px = px;
+    p.fp = light_footprint(p.r.local);
+    p.centre_n = -p.fp.centre / p.fp.half_box;
 #if REFIT != REFIT_NONE
     p.centre_lit = map_lit_plane(u_depth, ivec2(floor(p.r.map.xy)), p.r) > 0.5;
 #else
@@ -1015,13 +1038,19 @@ void resolve(Pixel p, Occlusion o, inout Result res) {
     res.a_vis = 1.0 - o.area;
 #if BITS > 0
     // Samples outside the light's shape never count.
-    float lit = 0.0;
-    for (int i = 0; i < BITS; ++i) lit += float(bitCount(u_valid[i] & ~o.bits[i]));
-    res.v = lit / u_valid_count;
+    uint valid[BITS];
+    float lit = 0.0, count = 0.0;
+    mat2 to_kernel = inverse(p.fp.axes) * mat2(p.fp.half_box.x, 0.0, 0.0, p.fp.half_box.y);
+    for (int i = 0; i < BITS; ++i) {
+        valid[i] = valid_row(to_kernel, i);
+        lit += float(bitCount(valid[i] & ~o.bits[i]));
+        count += float(bitCount(valid[i]));
+    }
+    res.v = lit / max(count, 1.0);
 #if TEXTURED || WEIGHTED
     vec4 sum_lit = vec4(0.0), sum_all = vec4(0.0);
     for (int i = 0; i < BITS; ++i) {
-        uint m = u_valid[i];
+        uint m = valid[i];
         while (m != 0u) {
             int k = findLSB(m);
             m &= m - 1u;

@@ -208,29 +208,81 @@ uniform vec2 u_light_half;        // half extent in the view's frame: metres, or
 uniform int u_light_round;        // disk, ellipse, sphere, sun: kernels over a disk
 uniform int u_light_one_sided;    // 1: a planar emitter, whose own cosine counts in a sample's weight
 uniform vec3 u_light_emit;        // its emission axis in the view's frame
+uniform int u_light_sphere = 0;   // 1: a point or spot light with a radius, in a perspective view
+
+// Where the kernel's unit disk (or square) lands on the view's light plane z = 0 for one receiver: kernel
+// position k stands for the plane point centre + axes·k, the ray from the receiver through it for its light
+// point. A planar emitter lies in that plane: centre 0, axes diag(u_light_half), the same for every receiver;
+// so does a sun's plane of tangents.
+struct Footprint {
+    vec2 centre;
+    mat2 axes;
+    vec2 half_box;      // half extent of the footprint's bounding box about its centre
+};
+
+// A sphere light does not lie in the plane: each receiver sees it as a disk of radius R through its centre,
+// facing the receiver (Cycles' point and spot lights with soft falloff, as REFERENCE samples them:
+// techniques/averaged.py projected_disk_ball). Seen from the receiver, that disk covers an ellipse of the plane.
+// With θ the receiver's angle off the view's axis, u the direction of its offset in the plane and t = R/D (D
+// its distance), the disk's rim in the plane of u and the axis projects (from the receiver, similar triangles)
+// to R/(cos θ + t sin θ) on the receiver's side and R/(cos θ − t sin θ) on the other; across u the rim lies in
+// the plane itself, at ±R. So the ellipse is stretched along u by about 1/cos θ and its centre moves away from
+// the receiver. The plain disk of radius R under-spreads off-axis receivers' penumbrae along u, and the
+// stretch alone, as an axis-aligned box over a diagonal ellipse, over-spreads them across u
+// (tests/test_sphere_footprint.py). Both denominators are held at 0.1 or more: a receiver near the light's
+// plane would see an unbounded section.
+Footprint light_footprint(vec3 local) {
+    Footprint f;
+    f.centre = vec2(0.0);
+    f.axes = mat2(u_light_half.x, 0.0, 0.0, u_light_half.y);
+    f.half_box = u_light_half;
+    float h = -local.z, dist = length(local);
+    float r = u_light_half.x, rho = length(local.xy);
+    // Behind the plane, or inside the sphere (no disk faces it): the plain disk.
+    if (u_light_sphere == 0 || u_light_ortho == 1 || h <= 0.0 || !(dist > r)) return f;
+    float t = r / dist, cos_t = h / dist, sin_t = rho / dist;
+    float near = r / max(cos_t + t * sin_t, 0.1);
+    float far = r / max(cos_t - t * sin_t, 0.1);
+    float a = 0.5 * (near + far), c = 0.5 * (near - far);
+    float b = r * inversesqrt(max(1.0 - (c * c) / (a * a), 1e-4));      // through ±R across u, at the centre
+    vec2 u = rho > 1e-9 * dist ? local.xy / rho : vec2(1.0, 0.0), v = vec2(-u.y, u.x);
+    f.centre = c * u;
+    f.axes = a * outerProduct(u, u) + b * outerProduct(v, v);
+    f.half_box = sqrt(a * a * u * u + b * b * v * v);
+    return f;
+}
+
+// The light-plane point kernel position k stands for.
+vec2 light_point(Footprint f, vec2 k) {
+    return f.centre + f.axes * k;
+}
 
 // A world direction (a normal) in the light view's frame.
 vec3 view_direction(vec3 world_dir) {
     return mat3(u_light_view) * world_dir;
 }
 
-// Unoccluded contribution at receiver r (shading normal n, view frame) of the light point that kernel
-// position k ∈ [-1, 1]² stands for (k·half on the light plane; the direction (k·half, 1) for a sun): the
-// receiver's cosine, times the emitter's cosine over d² for a planar light, over d² for a sphere's disk.
+// Unoccluded contribution at receiver r (shading normal n, view frame) of the light seen through light-plane
+// point q (light_point: the plane point itself; for a sun the direction (q, 1)): the
+// receiver's cosine, times the emitter's cosine over d² for a planar light and for the plane point of a
+// sphere's footprint.
 // A sun's directions are uniform in solid angle, which the tangent plane holds with density cos³θ
-// (dΩ = cos³θ dA at unit height): with the receiver's cosine, (n·d)/|d|⁴ for d = (k·half, 1). Without that
+// (dΩ = cos³θ dA at unit height): with the receiver's cosine, (n·d)/|d|⁴ for d = (q, 1). Without that
 // density a wide sun's rim directions counted up to 1/cos³θ too much (15× at 66° off its axis).
 // Zero below the receiver's horizon: such a point carries no light, so it counts neither as lit nor occluded.
-float light_sample_weight(Receiver r, vec3 n, vec2 k) {
+float light_sample_weight(Receiver r, vec3 n, vec2 q) {
     if (u_light_ortho == 1) {
-        vec3 d = vec3(k * u_light_half, 1.0);
+        vec3 d = vec3(q, 1.0);
         float q2 = dot(d, d);
         return max(dot(n, d), 0.0) / (q2 * q2);
     }
-    vec3 to_sample = vec3(k * u_light_half, 0.0) - r.local;
+    vec3 to_sample = vec3(q, 0.0) - r.local;
     float d2 = max(dot(to_sample, to_sample), 1e-30);
     vec3 dir = to_sample * inversesqrt(d2);
     float w = max(dot(n, dir), 0.0) / d2;
     if (u_light_one_sided == 1) w *= max(-dot(dir, u_light_emit), 0.0);
+    // A sphere's footprint is a region of the plane too (light_footprint): its rays cross the plane's unit
+    // area in a solid angle of |cos| / d², the same density as a planar emitter's.
+    else if (u_light_sphere == 1) w *= abs(dir.z);
     return w;
 }

@@ -87,11 +87,13 @@ bool light_above(Receiver r, vec3 normal, float eps, out float tan_max) {
     return true;
 }
 
-// Whether every kernel position k ∈ [-1, 1]² carries light (light_sample_weight > 0): its zero set is the
-// intersection of half-planes in k, so the four corners decide.
+// Whether every kernel position k ∈ [-1, 1]² carries light (light_sample_weight > 0 at its light_point): its
+// zero set is the intersection of half-planes in k (light_point is affine in k), so the four corners decide.
 bool light_weighted(Receiver r, vec3 n) {
+    Footprint f = light_footprint(r.local);
     for (int i = 0; i < 4; ++i)
-        if (light_sample_weight(r, n, vec2((i & 1) == 0 ? -1.0 : 1.0, (i & 2) == 0 ? -1.0 : 1.0)) <= 0.0)
+        if (light_sample_weight(r, n, light_point(f, vec2((i & 1) == 0 ? -1.0 : 1.0, (i & 2) == 0 ? -1.0 : 1.0)))
+                <= 0.0)
             return false;
     return true;
 }

@@ -28,18 +28,22 @@ uniform int u_filter_samples;
 uniform float u_max_radius;     // texels
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 
-// Penumbra half-extent in texels (x, y) for a blocker at depth z seen from receiver depth d.
-vec2 penumbra_texels(float z, float d) {
-    float spread = penumbra_spread_clamped(z, d, u_light_ortho);
-    return min(u_light_half * spread / u_texel_tan, vec2(u_max_radius));
+// Texels per metre (tangent, for a sun) of light plane, per axis, for a blocker at depth z seen from receiver
+// depth d: a light-plane point q maps to the map offset q·spread(z, d)/texel (the similar triangles above).
+// Scaled per axis so that the footprint's box (|centre| + half_box) spans at least half a texel and at most
+// u_max_radius texels: for a planar light, the kernel's half extent clamped as k ↦ k·clamp(h·spread/texel).
+vec2 texels_per_unit(Footprint f, float z, float d) {
+    vec2 per_unit = vec2(penumbra_spread_clamped(z, d, u_light_ortho) / u_texel_tan);
+    vec2 reach = (abs(f.centre) + f.half_box) * per_unit;
+    return per_unit * max(min(reach, vec2(u_max_radius)), vec2(0.5)) / max(reach, vec2(1e-30));
 }
 
-// Whether kernel position k looks at a point of the light. Always so in the sun's own view (the kernel's disk
-// is the light's); a rim view (core.lightview.sun_rim_faces) centres the same disk on a point of the sun's edge,
+// Whether light-plane point q (a direction (q, 1) in a sun's view) is a point of the light. Always so in the sun's
+// own view (the kernel's disk is the light's); a rim view (core.lightview.sun_rim_faces) centres the same disk on a point of the sun's edge,
 // and only the directions within the sun's half angle of its axis (-u_light_emit) are the sun's.
-bool in_light(vec2 k) {
+bool in_light(vec2 q) {
     if (u_light_ortho == 0) return true;
-    vec3 d = vec3(k * u_light_half, 1.0);
+    vec3 d = vec3(q, 1.0);
     float cos_half = inversesqrt(1.0 + u_light_half.x * u_light_half.x);
     return -dot(d, u_light_emit) >= cos_half * length(d) * (1.0 - 1e-5);
 }
@@ -54,10 +58,13 @@ bool is_rim_view() {
 // 2.75 rad sun), so there the taps weigh the irradiance their direction carries (light_sample_weight: the
 // cos³θ density with the receiver's cosine). Measured against the plain vote: the closed ball of
 // tests/test_wide_sun.py 0.039 -> 0.037, fuzz 7119 0.26 -> 0.23, 8335 0.234 -> 0.224 (mae_shadow).
-float tap_weight(Receiver r, vec3 n, vec2 k) {
-    if (!in_light(k)) return 0.0;
-    float w = light_sample_weight(r, n, k);
-    return is_rim_view() ? w : (w > 0.0 ? 1.0 : 0.0);
+// A sphere's taps are weighted too: its footprint (light_footprint) reaches further from the receiver on the far
+// side, where a plane point holds less of the light's solid angle, and an even vote over-weighted that side
+// (tests/test_sphere_footprint.py's point-light post, mae_shadow: an even vote 0.0224, weighted 0.0167).
+float tap_weight(Receiver r, vec3 n, vec2 q) {
+    if (!in_light(q)) return 0.0;
+    float w = light_sample_weight(r, n, q);
+    return is_rim_view() || u_light_sphere == 1 ? w : (w > 0.0 ? 1.0 : 0.0);
 }
 
 void main() {
@@ -74,30 +81,31 @@ void main() {
         Receiver r = pixel_receiver(px);
         vec3 n = view_direction(texelFetch(g_normal, px, 0).xyz);
         float d = r.map.z - r.bias;
+        Footprint f = light_footprint(r.local);
         // 1. Blocker search over the region the light can be seen through at the near plane.
-        vec2 search = max(penumbra_texels(u_light_depth_range.x, d), vec2(0.5));
+        vec2 search = texels_per_unit(f, u_light_depth_range.x, d);
         float blocker_sum = 0.0, blocker_weight = 0.0;
         // A rim view's receiver sees the sun through a sliver of the kernel's disk, which few of the pattern's
         // taps may hit: its search also looks along the view's axis, the rim point the view was chosen for
         // (fuzz 7119: mae_shadow 0.23 -> 0.064, the blocker was missed under most of the shadow).
         for (int i = is_rim_view() ? -1 : 0; i < u_blocker_samples; ++i) {
-            vec2 k = i < 0 ? vec2(0.0) : kernel_point(i, u_blocker_samples, u_light_round, 0.0);
-            float w = tap_weight(r, n, k);
+            vec2 q = i < 0 ? vec2(0.0) : light_point(f, kernel_point(i, u_blocker_samples, u_light_round, 0.0));
+            float w = tap_weight(r, n, q);
             if (w <= 0.0) continue;
-            ivec2 t = ivec2(floor(r.map.xy + k * search));
+            ivec2 t = ivec2(floor(r.map.xy + q * search));
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;
             float z = texelFetch(u_depth_map, t, 0).r;
             if (z < receiver_depth_at(r, vec2(t) + 0.5)) { blocker_sum += w * z; blocker_weight += w; }
         }
         if (blocker_weight > 0.0) {
             // 2. Penumbra size from the (weighted) mean blocker depth; 3. weighted PCF over it.
-            vec2 radius = max(penumbra_texels(blocker_sum / blocker_weight, d), vec2(0.5));
+            vec2 radius = texels_per_unit(f, blocker_sum / blocker_weight, d);
             float sum = 0.0, total = 0.0;
             for (int i = 0; i < u_filter_samples; ++i) {
-                vec2 k = kernel_point(i, u_filter_samples, u_light_round, 0.0);
-                float w = tap_weight(r, n, k);
+                vec2 q = light_point(f, kernel_point(i, u_filter_samples, u_light_round, 0.0));
+                float w = tap_weight(r, n, q);
                 if (w <= 0.0) continue;
-                sum += w * map_lit_bilinear_plane(u_depth_map, r.map.xy + k * radius, r);
+                sum += w * map_lit_bilinear_plane(u_depth_map, r.map.xy + q * radius, r);
                 total += w;
             }
             if (total > 0.0) v = sum / total;
