@@ -287,6 +287,52 @@ def cmd_fuzz(args) -> int:
     return 1 if failed else 0
 
 
+def _sizes(text: str) -> list[tuple[int, int]]:
+    """'128,512x256' → [(128, 128), (512, 256)]: square sizes or W x H, each in the render range."""
+    out = []
+    for item in (t.strip() for t in text.split(",") if t.strip()):
+        w, _, h = item.lower().partition("x")
+        try:
+            size = (int(w), int(h or w))
+        except ValueError:
+            raise Refusal(f"penumbra: size {item!r} is neither N nor WxH")
+        if not all(RESOLUTION_RANGE[0] <= v <= RESOLUTION_RANGE[1] for v in size):
+            raise Refusal(f"penumbra: size {item!r} is outside {RESOLUTION_RANGE[0]}…{RESOLUTION_RANGE[1]}")
+        out.append(size)
+    return out
+
+
+def cmd_bundle(args) -> int:
+    from .measure import bundle
+    from .techniques import TECHNIQUES
+    if args.action == "export":
+        _import_bpy()
+        from .measure.scenes import SCENES
+        names = [n.strip() for n in args.scenes.split(",") if n.strip()] or list(SCENES)
+        unknown = [n for n in names if n not in SCENES]
+        if unknown:
+            raise Refusal(f"penumbra: unknown scene(s) {', '.join(unknown)}; valid: {', '.join(SCENES)}")
+        files = bundle.export(args.folder, names, _sizes(args.sizes), reference_sizes=_sizes(args.reference_sizes),
+                              samples=args.cycles_samples, log=lambda m: print(m, file=sys.stderr, flush=True))
+        print(f"wrote {len(files)} bundle(s) to {args.folder}")
+        return 0
+    paths = sorted(str(p) for p in Path(args.folder).glob("*.pkl"))
+    if not paths:
+        raise Refusal(f"penumbra: no scene bundles (*.pkl) in {args.folder}")
+    techniques = [t.strip().upper() for t in args.techniques.split(",") if t.strip()] or list(TECHNIQUES)
+    unknown = [t for t in techniques if t not in TECHNIQUES]
+    if unknown:
+        raise Refusal(f"penumbra: unknown technique(s) {', '.join(unknown)}; valid: {', '.join(TECHNIQUES)}")
+    print(bundle.HEADER, flush=True)
+    results = bundle.run(paths, techniques, repeats=args.repeats, overrides=args.overrides,
+                         on_row=lambda r: print(bundle.table({"rows": [r]}).splitlines()[1], flush=True))
+    print(bundle.table(results))
+    if args.out:
+        bundle.write(results, args.out)
+        print(f"wrote {args.out}/bundle_results.{{json,md}}")
+    return 0
+
+
 def cmd_scenes(args) -> int:
     from .measure.scenes import list_scenes
     for name, description in list_scenes():
@@ -540,6 +586,23 @@ def build_parser() -> argparse.ArgumentParser:
     fz.add_argument("--cycles-samples", type=int, default=256, help="Cycles samples of the reference")
     fz.add_argument("--set", action="append", metavar="NAME=VALUE", help="render setting, repeatable")
     fz.set_defaults(func=cmd_fuzz)
+
+    bu = sub.add_parser("bundle", help="built-in scenes with their Cycles references to files, and time and "
+                                       "score every technique on them where Blender is not installed (a GPU box)",
+                        formatter_class=_Help, epilog=epilog)
+    bu.add_argument("action", choices=("export", "run"),
+                    help="export: build, extract and save (needs bpy); run: render, time and score (no bpy)")
+    bu.add_argument("folder", help="the bundles' folder")
+    bu.add_argument("--scenes", default="", help="export: comma-separated built-in scenes (default: all)")
+    bu.add_argument("--sizes", default="128", help="export: image sizes, N or WxH, comma-separated")
+    bu.add_argument("--reference-sizes", default="128",
+                    help="export: the sizes that get a Cycles reference (each costs a 1024-spp pair)")
+    bu.add_argument("--cycles-samples", type=_cycles_samples, default=1024, help="export: reference samples")
+    bu.add_argument("--techniques", default="", help="run: comma-separated techniques (default: all)")
+    bu.add_argument("--repeats", type=ranged(int, 1), default=5, help="run: timed frames (median reported)")
+    bu.add_argument("--set", action="append", metavar="NAME=VALUE", help="run: render setting, repeatable")
+    bu.add_argument("--out", help="run: folder for bundle_results.json and .md")
+    bu.set_defaults(func=cmd_bundle)
 
     s = sub.add_parser("scenes", help="list the built-in scenes")
     s.set_defaults(func=cmd_scenes)
