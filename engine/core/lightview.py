@@ -347,6 +347,9 @@ def seen_emitter(light: Light, points: np.ndarray, geometric: np.ndarray, chunk:
         half = np.full(2, light.radius)
         grid = _unit_square_grid(True) * half
     pad = half / RIM_SAMPLES_PER_SIDE
+    # The box of the grid points above a plane: along each axis, the first and last of them in the grid's
+    # order by that coordinate (argmax of a boolean row finds its first True), with no N × M × 2 temporaries.
+    orders = [np.argsort(grid[:, k], kind="stable") for k in range(2)]
     out = np.zeros((len(pts), 3)), np.zeros((len(pts), 2)), np.zeros((len(pts), 2)), np.zeros(len(pts), bool)
     for start in range(0, len(pts), chunk):
         p, n = pts[start:start + chunk], ng[start:start + chunk]
@@ -361,9 +364,14 @@ def seen_emitter(light: Light, points: np.ndarray, geometric: np.ndarray, chunk:
         flat = above @ grid / np.maximum(count, 1)[:, None]                 # centroid in the emitter's axes
         rows = slice(start, start + len(p))
         out[0][rows] = m[:3, 3] + flat[:, :1] * t1 + flat[:, 1:] * t2
-        out[1][rows] = np.where(above[..., None], grid, np.inf).min(axis=1) - pad
-        out[2][rows] = np.where(above[..., None], grid, -np.inf).max(axis=1) + pad
-        out[3][rows] = count > 0
+        sees = count > 0
+        for k, order in enumerate(orders):
+            by_k = above[:, order]
+            first = grid[order[np.argmax(by_k, axis=1)], k]
+            last = grid[order[len(order) - 1 - np.argmax(by_k[:, ::-1], axis=1)], k]
+            out[1][rows, k] = np.where(sees, first, np.inf) - pad[k]
+            out[2][rows, k] = np.where(sees, last, -np.inf) + pad[k]
+        out[3][rows] = sees
     return out
 
 
@@ -436,8 +444,8 @@ def local_rim_lights(light: Light, points: np.ndarray, geometric: np.ndarray, sh
             break
     stray = np.flatnonzero(owner >= 0)          # any still below its own: the highest, where one is above
     best, height = _highest_stand_in(stand_ins, pts[stray], ng[stray])
-    own = np.einsum("ij,ij->i", ng[stray], np.array([stand_ins[k].position for k in owner[stray]]).reshape(-1, 3)
-                    - pts[stray])
+    centres = np.array([s.position for s in stand_ins], float).reshape(-1, 3)
+    own = np.einsum("ij,ij->i", ng[stray], centres[owner[stray]] - pts[stray])
     move = (own <= 0.0) & (height > 0.0)
     owner[stray[move]] = best[move]
     rest = owner < 0
