@@ -722,32 +722,33 @@ bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     return true;
 }
 
-#if WEIGHTED
-// Unoccluded contribution of light sample (row l, column k) at the receiver (light_view.glsl's
-// light_sample_weight, with the shading normal: zero below the horizon). The sample position mirrors
-// sample_positions() in engine/techniques/backprojection.py.
-float sample_weight(Pixel p, int l, int k) {
-    float n = float(BITS);
-    vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
-    return light_sample_weight(p.r, p.shading, p.fp.centre + p.fp.half_box * q);
-}
-#endif
-
 #if BITS > 0
+// Light coordinates of bitmask sample (row l, column k); mirrors sample_positions() in
+// engine/techniques/backprojection.py.
+vec2 sample_position(int l, int k) {
+    float n = float(BITS);
+    return vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
+}
+
 // Bitmask row l's samples that stand for points of the light: the light's shape (u_valid) for planar lights
 // and suns; for a sphere, those inside this receiver's footprint ellipse, which touches the sides of the
-// light coordinates' box [−1, 1]² (sample positions as in sample_weight). `to_kernel` takes light coordinates
-// to the kernel's unit disk.
+// light coordinates' box [−1, 1]². `to_kernel` takes light coordinates to the kernel's unit disk.
 uint valid_row(mat2 to_kernel, int l) {
     if (u_light_sphere == 0) return u_valid[l];
-    float n = float(BITS);
     uint m = 0u;
     for (int k = 0; k < BITS; ++k) {
-        vec2 q = vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
-        vec2 e = to_kernel * q;
+        vec2 e = to_kernel * sample_position(l, k);
         if (dot(e, e) <= 1.0) m |= 1u << uint(k);
     }
     return m;
+}
+#endif
+
+#if WEIGHTED
+// Unoccluded contribution of light sample (row l, column k) at the receiver (light_view.glsl's
+// light_sample_weight at the sample's light-plane point, with the shading normal: zero below the horizon).
+float sample_weight(Pixel p, int l, int k) {
+    return light_sample_weight(p.r, p.shading, p.fp.centre + p.fp.half_box * sample_position(l, k));
 }
 #endif
 
