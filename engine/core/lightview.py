@@ -672,14 +672,16 @@ def faces_clear_light(light: Light, normals: np.ndarray, offsets: np.ndarray, po
         return False
     pts = np.asarray(points, float).reshape(-1, 3)
     up = None if lifted is None else np.asarray(lifted, float).reshape(-1, 3)
-    n_whole, o_whole = normals[whole], offsets[whole]
+    # Faces a stride apart first (a mesh lists neighbouring faces together): most points lie in front of one
+    # of the first few planes, and _in_front_of_any stops looking for them there.
+    order = np.argsort(np.arange(int(whole.sum())) % 16, kind="stable")
+    n_whole, o_whole = normals[whole][order], offsets[whole][order]
     start, step = 0, 256            # a small first chunk: a caster that does shadow them fails fast
     while start < len(pts):
         p = pts[start:start + step]
-        d = p @ n_whole.T - o_whole
-        clear = (d >= -tol).any(axis=1)
+        clear = _in_front_of_any(p, n_whole, o_whole, tol)
         if up is not None:
-            clear &= (up[start:start + step] @ n_whole.T - o_whole >= -tol).any(axis=1)
+            clear[clear] = _in_front_of_any(up[start:start + step][clear], n_whole, o_whole, tol)
         if not clear.all():             # the rest must lie on the surface, seen from outside, facing the centre
             if facing is None:
                 return False
@@ -691,6 +693,23 @@ def faces_clear_light(light: Light, normals: np.ndarray, offsets: np.ndarray, po
                 return False
         start, step = start + step, max(step, chunk // len(normals))
     return True
+
+
+def _in_front_of_any(points: np.ndarray, normals: np.ndarray, offsets: np.ndarray, tol: float,
+                     block: int = 64) -> np.ndarray:
+    """Whether each point (N × 3) lies on or in front of (n·p − o ≥ −tol) any of the planes: the planes a block
+    at a time, each block for the points not yet in front of an earlier one (the answer of the whole N × F
+    product at a fraction of its work when most points are in front of an early plane)."""
+    front = np.zeros(len(points), bool)
+    todo = np.arange(len(points))
+    for start in range(0, len(normals), block):
+        if not len(todo):
+            break
+        d = points[todo] @ normals[start:start + block].T - offsets[start:start + block]
+        hit = (d >= -tol).any(axis=1)
+        front[todo[hit]] = True
+        todo = todo[~hit]
+    return front
 
 
 def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int | None:
