@@ -1041,7 +1041,8 @@ void resolve(Pixel p, Occlusion o, inout Result res) {
     // Samples outside the light's shape never count.
     uint valid[BITS];
     float lit = 0.0, count = 0.0;
-    mat2 to_kernel = inverse(p.fp.axes) * mat2(p.fp.half_box.x, 0.0, 0.0, p.fp.half_box.y);
+    mat2 to_kernel = u_light_sphere == 0 ? mat2(1.0)          // only a sphere's mask is per pixel (valid_row)
+                   : inverse(p.fp.axes) * mat2(p.fp.half_box.x, 0.0, 0.0, p.fp.half_box.y);
     for (int i = 0; i < BITS; ++i) {
         valid[i] = valid_row(to_kernel, i);
         lit += float(bitCount(valid[i] & ~o.bits[i]));

@@ -29,18 +29,19 @@ uniform float u_max_radius;     // texels
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 
 // Texels per metre (tangent, for a sun) of light plane, per axis, for a blocker at depth z seen from receiver
-// depth d: a light-plane point q maps to the map offset q·spread(z, d)/texel (the similar triangles above).
-// Scaled per axis so that the footprint's box (|centre| + half_box) spans at least half a texel and at most
-// u_max_radius texels: for a planar light, the kernel's half extent clamped as k ↦ k·clamp(h·spread/texel).
+// depth d: a light-plane point q maps to the map offset q·spread(z, d)/texel (the similar triangles above),
+// the footprint's reach (|centre| + half_box) held between half a texel and u_max_radius texels. For a planar
+// light q = k·h, so the offset is k times the kernel's clamped half extent clamp(h·spread/texel), as before.
 vec2 texels_per_unit(Footprint f, float z, float d) {
-    vec2 per_unit = vec2(penumbra_spread_clamped(z, d, u_light_ortho) / u_texel_tan);
-    vec2 reach = (abs(f.centre) + f.half_box) * per_unit;
-    return per_unit * max(min(reach, vec2(u_max_radius)), vec2(0.5)) / max(reach, vec2(1e-30));
+    vec2 extent = abs(f.centre) + f.half_box;
+    vec2 reach = extent * (penumbra_spread_clamped(z, d, u_light_ortho) / u_texel_tan);
+    return max(min(reach, vec2(u_max_radius)), vec2(0.5)) / max(extent, vec2(1e-30));
 }
 
-// Whether light-plane point q (a direction (q, 1) in a sun's view) is a point of the light. Always so in the sun's
-// own view (the kernel's disk is the light's); a rim view (core.lightview.sun_rim_faces) centres the same disk on a point of the sun's edge,
-// and only the directions within the sun's half angle of its axis (-u_light_emit) are the sun's.
+// Whether light-plane point q (a direction (q, 1) in a sun's view) is a point of the light. Always so in the
+// sun's own view (the kernel's disk is the light's); a rim view (core.lightview.sun_rim_faces) centres the same
+// disk on a point of the sun's edge, and only the directions within the sun's half angle of its axis
+// (-u_light_emit) are the sun's.
 bool in_light(vec2 q) {
     if (u_light_ortho == 0) return true;
     vec3 d = vec3(q, 1.0);
