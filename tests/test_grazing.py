@@ -67,22 +67,6 @@ def test_reference_within_cycles_noise_on_grazing_scenes(name):
     assert m["mae_shadow"] <= floor["mae_shadow"] + 0.005
 
 
-@pytest.fixture(scope="module")
-def tilted():
-    return _setup("tilted")
-
-
-@pytest.mark.xfail(strict=True, reason="PCSS's penumbra estimate from the mean blocker depth: over a sphere the "
-                   "blockers found are its top, the silhouette is its equator, so the umbra comes out too light "
-                   "and the outer penumbra too dark (0.063 against REFERENCE's 0.012 at 128²); not a bias issue")
-def test_pcss_on_a_tilted_floor_within_twice_reference(tilted):
-    sc, snap, ref = tilted
-    ours = metrics.compare(_visibility(snap, "PCSS"), ref.visibility, ref.mask)
-    best = metrics.compare(_visibility(snap, "REFERENCE"), ref.visibility, ref.mask)
-    print("PCSS", ours["mae_shadow"], "REFERENCE", best["mae_shadow"])
-    assert ours["mae_shadow"] <= 2.0 * best["mae_shadow"]
-
-
 @pytest.mark.parametrize("name", ["tilted", "slab", "contact"])
 def test_backprojection_next_to_contacts_within_cycles_16_and_twice_reference(name):
     """Receivers next to their casters: a ball on a tilted floor, a wall's foot lit nearly edge-on, a ball and
@@ -185,3 +169,40 @@ def test_flat_shaded_bent_faces_are_lit_as_cycles_lights_them():
     print("relative unshadowed error, 50/75/90th percentiles:", np.percentile(rel, [50, 75, 90]))
     assert lit.sum() > 2000
     assert np.percentile(rel, 75) <= 0.01
+
+
+# Issue 10's target for the grazing and tilted classes: the soft techniques within twice REFERENCE's mae_shadow.
+# Where a technique misses it the xfail names the cause and the measured figures (96², Cycles 256 spp).
+TWICE_REFERENCE_XFAIL = {
+    ("cube", "PCSS"): "the penumbra is wider than pcss_max_radius (0.1 of the map), so the kernels act as a smaller "
+                      "light's and the core comes out too dark: 0.089 against REFERENCE's 0.011 (0.016 at a cap of "
+                      "0.5, which makes suzanne, contact, tilted and slab worse)",
+    ("tilted", "PCSS"): "one mean blocker depth: over a ball the blockers found are its top while its silhouette is "
+                        "its equator, so the penumbra is sized for the wrong depth: 0.038 against 0.014",
+    ("grazing", "SSM"): "the floating bar's long shadow comes out too light: seen from a far receiver, micro-patches "
+                        "of a face the light grazes separate (their depths differ), leaving gaps: 0.040 against 0.016",
+    ("tilted", "SSM"): "the penumbra comes out too dark: summed micro-patches overlap where the ball's flank, seen "
+                       "from a receiver, folds over itself: 0.053 against 0.014",
+}
+
+
+@pytest.fixture(scope="module")
+def class_scenes():
+    return {}
+
+
+@pytest.mark.parametrize("name,technique", [
+    pytest.param(n, t, marks=[pytest.mark.xfail(strict=True, reason=TWICE_REFERENCE_XFAIL[(n, t)])]
+                 if (n, t) in TWICE_REFERENCE_XFAIL else [])
+    for n in ("grazing", "cube", "tilted") for t in ("PCSS", "SSM", "BACKPROJECTION")])
+def test_soft_techniques_within_twice_reference_on_grazing_and_tilted_scenes(class_scenes, name, technique):
+    """PCSS with an even vote over its taps → irradiance-weighted taps, 128² against Cycles 1024 spp (bench):
+    grazing 0.050 → 0.030, cube 0.097 → 0.089, tilted 0.041 → 0.035."""
+    if name not in class_scenes:
+        sc, snap, ref = _setup(name)
+        best = metrics.compare(_visibility(snap, "REFERENCE"), ref.visibility, ref.mask)["mae_shadow"]
+        class_scenes[name] = (snap, ref, best)
+    snap, ref, best = class_scenes[name]
+    ours = metrics.compare(_visibility(snap, technique), ref.visibility, ref.mask)["mae_shadow"]
+    print(name, technique, ours, "REFERENCE", best)
+    assert ours <= 2.0 * best

@@ -5,9 +5,8 @@
 //
 // By the same similar triangles, kernel position k ∈ [-1, 1]² (search or filter) looks along the ray from the
 // receiver towards the light point k·h: taps whose point lies below the receiver's horizon carry no light and
-// count neither as blockers nor in the filter's mean. (Weighting the other taps by their irradiance, as
-// REFERENCE does, was measured worse: PCSS's tap-to-light correspondence is only approximate; on the stress
-// suite's camera_in_box, mae_shadow 0.056 with this mask, 0.065 weighted.) Every texel is
+// count neither as blockers nor in the filter's mean; the others weigh the irradiance their light point
+// carries to the receiver (light_sample_weight), the visibility Cycles measures (see tap_weight). Every texel is
 // compared with the receiver's tangent plane (light_view.glsl), so a tilted floor never finds itself.
 // Both kernels use one fixed stratified pattern for every pixel: the result is a smooth function of the
 // receiver's position, with no per-pixel noise (a per-pixel rotation turns into salt-and-pepper across the
@@ -49,23 +48,61 @@ bool in_light(vec2 q) {
     return -dot(d, u_light_emit) >= cos_half * length(d) * (1.0 - 1e-5);
 }
 
-// A sun's view whose axis is not the sun's own: one of its rim views.
-bool is_rim_view() {
-    return u_light_ortho == 1 && u_light_emit.z > -0.9999;
+// A view whose axis is not the light's own: a sun's rim view, an area light's cube face.
+bool off_axis_view() {
+    return u_light_emit.z > -0.9999;
 }
 
-// A tap's vote: 1 where its light point is above the receiver's horizon, else 0 (see the top). In a rim view
-// the receiver sees the sun only near its horizon and the disk of tangents reaches far off its axis (tan 5 at a
-// 2.75 rad sun), so there the taps weigh the irradiance their direction carries (light_sample_weight: the
-// cos³θ density with the receiver's cosine). Measured against the plain vote: the closed ball of
-// tests/test_wide_sun.py 0.039 -> 0.037, fuzz 7119 0.26 -> 0.23, 8335 0.234 -> 0.224 (mae_shadow).
-// A sphere's taps are weighted too: its footprint (light_footprint) reaches further from the receiver on the far
-// side, where a plane point holds less of the light's solid angle, and an even vote over-weighted that side
-// (tests/test_sphere_footprint.py's point-light post, mae_shadow: an even vote 0.0224, weighted 0.0167).
-float tap_weight(Receiver r, vec3 n, vec2 q) {
+// A sun's view whose axis is not the sun's own: one of its rim views.
+bool is_rim_view() {
+    return u_light_ortho == 1 && off_axis_view();
+}
+
+// Whether all of a planar light's rectangle (its bounding one for a disk) lies above the receiver's horizon.
+bool whole_light_above(Receiver r, vec3 n) {
+    for (int i = 0; i < 4; ++i) {
+        vec2 c = u_light_half * vec2(i % 2 == 0 ? -1.0 : 1.0, i < 2 ? -1.0 : 1.0);
+        if (dot(n, vec3(c, 0.0) - r.local) <= 0.0) return false;
+    }
+    return true;
+}
+
+// A tap's weight, 0 below the receiver's horizon. Otherwise the irradiance its light point carries, the
+// visibility Cycles measures; an even vote over-weighted the light's far side, which a receiver next to a
+// caster sees least of. At 128² against Cycles 1024 spp, vote → weighted: grazing 0.050 → 0.030, cube 0.097 →
+// 0.089, suzanne 0.048 → 0.039, balls 0.051 → 0.045, tilted 0.041 → 0.035, plane 0.075 → 0.070; thin, city
+// within +0.001; fuzz 10000–10039 mean 0.0346 → 0.0338, none over its bound.
+// - Planar light, own view: the light's cosine over squared distance, for the point the tap really looks at
+//   (`shrink`: under pcss_max_radius the taps stand for a smaller light). The receiver's cosine counts only
+//   where the whole light is above its horizon: where the horizon cuts the light it put nearly all the weight on
+//   the few taps far above it, whose rays PCSS's single blocker depth maps worst (tests/test_rim_views.py's
+//   floor seeing a sliver of its light: 0.119 voted, 0.206 with that cosine, 0.117 without).
+// - Planar light on a cube face: the kernel spans the light projected onto the face's plane, whose points are
+//   not the light's: the plain vote.
+// - Sphere light: its footprint reaches further on the far side, where a plane point holds less of its solid
+//   angle (tests/test_sphere_footprint.py: vote 0.0224, weighted 0.0167).
+// - Sun: its rim views weigh the cos³θ density with the receiver's cosine (tests/test_wide_sun.py); its own view
+//   votes: a disk of tangents out to tan 1.5 rad puts few taps where the weight is (the very wide sun of
+//   test_wide_sun.py at pcss_max_radius 0.5: 0.060 voted, 0.184 weighted).
+float tap_weight(Receiver r, vec3 n, vec2 q, vec2 shrink) {
     if (!in_light(q)) return 0.0;
     float w = light_sample_weight(r, n, q);
-    return is_rim_view() || u_light_sphere == 1 ? w : (w > 0.0 ? 1.0 : 0.0);
+    if (w <= 0.0) return 0.0;
+    if (u_light_one_sided == 1) {
+        if (off_axis_view()) return 1.0;
+        // The receiver's cosine and the light's, over squared distance (light_sample_weight's terms).
+        vec3 to_sample = vec3(q * shrink, 0.0) - r.local;
+        float d2 = max(dot(to_sample, to_sample), 1e-30);
+        float cos_receiver = whole_light_above(r, n) ? max(dot(n, to_sample), 0.0) * inversesqrt(d2) : 1.0;
+        return max(cos_receiver * -dot(to_sample, u_light_emit) * inversesqrt(d2) / d2, 1e-30);
+    }
+    return is_rim_view() || u_light_sphere == 1 ? w : 1.0;
+}
+
+// How much the cap shrank the kernel: its taps at q look along the rays to light points q·shrink.
+vec2 cap_shrink(vec2 per_unit, float z, float d) {
+    vec2 exact = vec2(penumbra_spread_clamped(z, d, u_light_ortho)) / u_texel_tan;
+    return clamp(per_unit / max(exact, vec2(1e-30)), 0.0, 1.0);
 }
 
 void main() {
@@ -91,7 +128,7 @@ void main() {
         // (fuzz 7119: mae_shadow 0.23 -> 0.064, the blocker was missed under most of the shadow).
         for (int i = is_rim_view() ? -1 : 0; i < u_blocker_samples; ++i) {
             vec2 q = i < 0 ? vec2(0.0) : light_point(f, kernel_point(i, u_blocker_samples, u_light_round, 0.0));
-            float w = tap_weight(r, n, q);
+            float w = tap_weight(r, n, q, cap_shrink(search, u_light_depth_range.x, d));
             if (w <= 0.0) continue;
             ivec2 t = ivec2(floor(r.map.xy + q * search));
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;
@@ -100,11 +137,12 @@ void main() {
         }
         if (blocker_weight > 0.0) {
             // 2. Penumbra size from the (weighted) mean blocker depth; 3. weighted PCF over it.
-            vec2 radius = texels_per_unit(f, blocker_sum / blocker_weight, d);
+            float zb = blocker_sum / blocker_weight;
+            vec2 radius = texels_per_unit(f, zb, d), shrink = cap_shrink(radius, zb, d);
             float sum = 0.0, total = 0.0;
             for (int i = 0; i < u_filter_samples; ++i) {
                 vec2 q = light_point(f, kernel_point(i, u_filter_samples, u_light_round, 0.0));
-                float w = tap_weight(r, n, q);
+                float w = tap_weight(r, n, q, shrink);
                 if (w <= 0.0) continue;
                 sum += w * map_lit_bilinear_plane(u_depth_map, r.map.xy + q * radius, r);
                 total += w;
