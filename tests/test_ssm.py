@@ -320,3 +320,37 @@ def test_gpu_patch_list_equals_the_numpy_reference(monkeypatch, case):
     assert abs(r.stats["ssm_work"] - int(sum(w for *_, w in seen))) <= 1
     if case == "lowered_by_budget":
         assert r.stats["ssm_map_size"] < 256 and any("lowered" in w for w in r.warnings)
+
+
+def _ball_on_ground(size=40):
+    """A 1.2 m ball resting on the ground under a 1.6 m area light 2.6 m up and 0.4 m to the side: the light
+    sees the ball's flank obliquely, so from a receiver in the penumbra that surface folds over itself."""
+    from penumbra.engine.measure import stress
+    parts = [("Ground", stress.quad((0, 0, 0), 4.0), True, True),
+             ("Ball", stress.sphere((0.0, 0.0, 0.6), 0.6, rings=10), True, True)]
+    return stress.assemble(parts, [stress.area_light((0.4, 0.0, 2.6), size=1.6)],
+                           stress.camera(eye=(0.0, -3.5, 4.5), size=size), "ball")
+
+
+def test_sloped_facets_neither_gap_nor_overlap_over_a_curved_caster():
+    """Against ray-traced visibility (stress.oracle, 100 light points). The paper's flat micro-patches sum to
+    more than the ball hides, where its flank folds over itself as a receiver sees it: measured mae 0.053.
+    Sloped facets (ssm_facets, the default) meet their neighbours on the light and subtract where seen from
+    behind: 0.0095. Bounds: facets under 0.02, and flat patches at least 3× worse (the test fails if either
+    mechanism changes). The compute scatter's signed fixed-point sums equal the raster scatter's."""
+    from penumbra.engine.measure import stress
+    snap = _ball_on_ground()
+    oracle = stress.oracle(snap, n=10)["V"]
+    errors = {}
+    for facets in (True, False):
+        v = pipeline.render(snap, _ssm(ssm_facets=facets)).passes["Visibility"][..., 0]
+        known = np.isfinite(oracle)
+        shadow = known & ((v < 0.99) | (oracle < 0.99))
+        assert shadow.sum() > 200
+        errors[facets] = float(np.abs(v - oracle)[shadow].mean())
+        if facets:
+            c = pipeline.render(snap, _ssm(ssm_facets=True, ssm_scatter="COMPUTE")).passes["Visibility"][..., 0]
+            assert np.abs(c - v).max() < 1e-4
+    print(errors)
+    assert errors[True] < 0.02
+    assert errors[False] > 3.0 * errors[True]

@@ -13,7 +13,7 @@ from ..gpu.loops import chunk_count, chunk_uniforms
 from ..gpu.programs import bind_samplers, program, set_uniforms
 from ..gpu.state import gl_state
 from . import structure
-from .ssm_maps import SSM_MAPS
+from .ssm_maps import FACET_SLOPE, SSM_MAPS
 
 SOFT_SHADOW_MAP = "soft_shadow_map"
 
@@ -31,15 +31,15 @@ class SoftShadowMap:
 @structure(SOFT_SHADOW_MAP, requires=(SSM_MAPS,))
 def build(frame, lc, precision: str, method: str, weighted: bool):
     """`precision`: FLOAT32, HALF or HALF_BATCHED blending (appendix A); `method`: RASTER (instanced quads,
-    additive blending) or COMPUTE (fixed-point atomics); `weighted`: irradiance-weighted occlusion. None
-    when the maps were skipped."""
+    additive blending) or COMPUTE (fixed-point atomics); `weighted`: irradiance-weighted occlusion. Sloped
+    facets or flat micro-patches as the maps were built (SsmMaps.facets). None when the maps were skipped."""
     maps = lc.structures[SSM_MAPS]
     if maps.skipped:
         return None
     frame.progress.check()
     with frame.timings.stage("ssm_scatter"):
-        ssms = [scatter(frame, maps, patches, precision, method, weighted) if patches.count else None
-                for patches in maps.patches]
+        ssms = [scatter(frame, maps, patches, precision, method, weighted, maps.maps[name] if maps.facets else None)
+                if patches.count else None for patches, name in zip(maps.patches, ("front", "back"))]
     front = ssms[0] if ssms[0] is not None else _zero(frame, maps.view)
     back = ssms[1] if len(ssms) > 1 and ssms[1] is not None else None
     return SoftShadowMap(front, back)
@@ -59,20 +59,24 @@ def _zero(frame, view):
     return frame.texture((view.width, view.height), 2)     # zero-filled
 
 
-def scatter(frame, maps, patches, precision: str, method: str, weighted: bool):
+def scatter(frame, maps, patches, precision: str, method: str, weighted: bool, occluders=None):
     """Sum the hidden light fraction of every micro-patch in `patches` (a PatchList, built on the GPU) into
     an RG soft shadow map (r: nearest receiver, g: farthest). §3.4 on the GPU; precision and batching per
-    appendix A. The instance count and the batches come from the count the patch list read back."""
+    appendix A. The instance count and the batches come from the count the patch list read back.
+    `occluders`: the occluder map the patches come from, for sloped facets (glsl/ssm/patch.glsl), or None
+    for the paper's flat micro-patches."""
     ctx, view = frame.ctx, maps.view
     size = (view.width, view.height)
-    defines = {"SSM_WEIGHTED": int(weighted)}
+    defines = {"SSM_WEIGHTED": int(weighted), "SSM_FACETS": int(occluders is not None)}
     uniforms = {**view.uniforms(), **frame.bias_uniforms, "u_half": maps.half, "u_ortho": int(view.is_ortho),
-                "u_bias_texels": maps.bias}
+                "u_bias_texels": maps.bias, "u_facet_slope": FACET_SLOPE}
     patches.buffer.bind_to_storage_buffer(0)
     m = patches.count
     receivers = {name: maps.maps[key] for name, key in (("u_near_a", "near"), ("u_near_b", "near_n"),
                                                          ("u_near_c", "near_c"), ("u_far_a", "far"),
                                                          ("u_far_b", "far_n"), ("u_far_c", "far_c"))}
+    if occluders is not None:
+        receivers["u_occluders"] = occluders
     if method == "COMPUTE":
         for binding in (1, 2):
             t = frame.texture(size, 1, dtype="u4")     # zero-filled

@@ -103,7 +103,21 @@ def ssm_view(view: LightView, half, size: int, light_aspect: bool = False) -> Li
                      tuple(float(v) for v in window), view.clamped)
 
 
-def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_texels: float):
+# Sloped facets (glsl/ssm/patch.glsl edge_depth): two neighbouring texels of one object are one surface while
+# their depths differ by at most this many texel widths (at 128², 8 → 16: tilted 0.0079 → 0.0070, suzanne
+# 0.0182 → 0.0190; 4: 0.0153, 0.0233). An edge then lies halfway between their depths, so no nearer than
+# FACET_SLOPE / 2 texel widths in front of its patch: the extents below reach that far.
+FACET_SLOPE = 8.0
+
+
+def facet_reach(view: LightView, facets: bool) -> float:
+    """How far in front of its patch a sloped facet's edge may lie: in metres for a sun's view, as a share of
+    the patch's depth for a perspective one (0 for the paper's flat micro-patches)."""
+    return 0.5 * FACET_SLOPE * max(view.texel_size()) if facets else 0.0
+
+
+def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_texels: float,
+               facets: bool = False):
     """Micro-patches of an occluder map and their penumbra extents (§3.3): the reference that
     glsl/ssm/patches.comp reproduces on the GPU (the renderer uses that one; tests compare the two).
 
@@ -111,7 +125,8 @@ def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_
     [lo − h·s, hi + h·s] with s = penumbra_spread(zo, zr) — the section of the patch's penumbra pyramid,
     whose apex is C_L + r/(1+r)·(C_P − C_L) with r = LL'/PP' (§3.3; at zr the paper's RR' = LL'(zr − z_apex)/z_apex
     equals the patch's projection zr/zo·PP' plus LL'(zr − zo)/zo, the same rectangle). It grows with zr, so
-    the farthest receiver depth bounds it. Returns (float32 (M, 8) rows: x0, y0, x1, y1 in texels, i, j,
+    the farthest receiver depth bounds it; with sloped `facets` it is taken at the facet's nearest possible
+    edge (facet_reach). Returns (float32 (M, 8) rows: x0, y0, x1, y1 in texels, i, j,
     zo, object; estimated SSM texel updates). `depth_id`: (H, W, 2) depth and object index per texel."""
     depth, ids = depth_id[..., 0], depth_id[..., 1]
     valid = (depth > 0.0) & (depth < EMPTY_DEPTH)
@@ -125,7 +140,9 @@ def patch_list(depth_id: np.ndarray, view: LightView, half, zr_max: float, bias_
     obj = ids[j, i]
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         # 1e-30 m: a patch on the light plane (zo = 0) gets a huge, finite spread instead of a division by 0.
-        s = np.maximum(penumbra_spread(np.maximum(zo, 1e-30), zr_max, view.is_ortho), 0.0)
+        reach = facet_reach(view, facets)
+        near = zo - reach if view.is_ortho else zo * (1.0 - reach)      # patches.comp's arithmetic, in order
+        s = np.maximum(penumbra_spread(np.maximum(near, 1e-30), zr_max, view.is_ortho), 0.0)
         gx = np.minimum(half[0] * s / tw, 4.0 * view.width)     # clamp: an occluder at the light plane
         gy = np.minimum(half[1] * s / th, 4.0 * view.height)    # covers the map, never infinity
     rect = np.stack([np.clip(i - gx, 0, view.width), np.clip(j - gy, 0, view.height),
@@ -188,7 +205,8 @@ class _PatchCounts:
             frame.give_back(buf)
 
 
-def _count_patches(frame, view: LightView, half, occluders: list, far_map, bias: float) -> _PatchCounts:
+def _count_patches(frame, view: LightView, half, occluders: list, far_map, bias: float,
+                   reach: float = 0.0) -> _PatchCounts:
     """Patch count and work of each occluder map, computed on the GPU; 16 bytes per map come back."""
     size = (view.width, view.height)
     runs = -(-view.width * view.height // _PATCH_RUN)
@@ -196,7 +214,7 @@ def _count_patches(frame, view: LightView, half, occluders: list, far_map, bias:
     far = frame.reserved_buffer(_quantised(4))
     far.write(np.zeros(1, np.uint32).tobytes())           # atomicMax from 0: no receiver yet
     uniforms = {"u_runs": runs, "u_half": tuple(half), "u_texel": view.texel_size(), "u_bias": float(bias),
-                "u_ortho": int(view.is_ortho)}
+                "u_ortho": int(view.is_ortho), "u_facet_reach": float(reach)}
     frame.dispatch("ssm/patches.comp", uniforms, samplers={"u_map": far_map}, buffers={1: far},
                    defines={"PASS": 0}, size=size, groups=grid)
     scratch = []
@@ -239,7 +257,8 @@ def reference_patches(frame, maps: "SsmMaps") -> list:
     valid = (far > 0.0) & (far < EMPTY_DEPTH)
     zr_max = float(far[valid].max()) if valid.any() else math.inf
     names = ("front", "back")[:len(maps.patches)]
-    return [patch_list(frame.read(maps.maps[name]), maps.view, maps.half, zr_max, maps.bias) for name in names]
+    return [patch_list(frame.read(maps.maps[name]), maps.view, maps.half, zr_max, maps.bias, maps.facets)
+            for name in names]
 
 
 def casters_reach_receivers(light, world_to_local, half, is_ortho: bool, casters, receivers) -> bool:
@@ -278,6 +297,7 @@ class SsmMaps:
     bias: float = DEPTH_EPSILON
     skipped: bool = False
     enclosed: bool = False                   # skipped because a closed shell hides the light from every pixel
+    facets: bool = False                     # sloped facets: the extents reach their edges (facet_reach)
 
     @property
     def nbytes(self) -> int:
@@ -317,10 +337,11 @@ def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
 
 
 @structure(SSM_MAPS, requires=(RECEIVER_MASK,))
-def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: bool = False):
+def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: bool = False, facets: bool = False):
     """`size`: texels along the longer side; `budget`: SSM texel updates allowed before the maps are made
     coarser (§5.1); `two_pass`: also the back-face occluder map (§3.5); `light_aspect`: texels of the light's
-    aspect ratio (§3.2) instead of square ones (ssm_view)."""
+    aspect ratio (§3.2) instead of square ones (ssm_view); `facets`: the patches' extents sized for sloped
+    facets (glsl/ssm/patch.glsl)."""
     light = lc.light
     for text in role_warnings(frame.snap):
         frame.warn(text)
@@ -356,13 +377,15 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
     bias = DEPTH_EPSILON
     budget *= lc.share          # the light's budget, split over its views by the pixels each holds
     occluder_maps = ("front", "back") if two_pass else ("front",)
-    for _attempt in range(4):
+    attempts = 4
+    for attempt in range(attempts):
         view = ssm_view(lc.view, half, size, light_aspect)
         with frame.timings.stage("ssm_maps"):
             maps = _draw_maps(frame, lc, view, casters, two_pass, lc.structures[RECEIVER_MASK])
-            counted = _count_patches(frame, view, half, [maps[n] for n in occluder_maps], maps["far"], bias)
+            counted = _count_patches(frame, view, half, [maps[n] for n in occluder_maps], maps["far"], bias,
+                                     facet_reach(view, facets))
         work = sum(counted.works)
-        if work <= budget or size <= 32:
+        if work <= budget or size <= 32 or attempt == attempts - 1:     # the last attempt's maps are kept
             break
         counted.give_back(frame)
         new = max(32, int(size * (budget / work) ** 0.25 * 0.95))
@@ -376,7 +399,7 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
     skipped = all(p.count == 0 for p in patches)
     if skipped:
         frame.count(ssm_lights_skipped=1)
-    return SsmMaps(casters, receivers, half, view, maps, patches, bias, skipped)
+    return SsmMaps(casters, receivers, half, view, maps, patches, bias, skipped, facets=facets)
 
 
 @structure(RECEIVER_MASK)

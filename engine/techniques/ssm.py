@@ -96,6 +96,10 @@ class SoftShadowMaps(Technique):
                items=(("IRRADIANCE", "Irradiance", "Weighted by its share of the light's irradiance at a "
                        "receiver facing the light (parallel-rectangle form factor): closer to Cycles"),
                       ("UNIFORM", "Uniform (paper)", "Plain share of the light's area, as in the paper"))),
+        Option("ssm_facets", True, "Sloped Facets",
+               "Ours: each occluder texel spans its surface between depths shared with its neighbours, and counts "
+               "negatively where a receiver sees it from behind, so the summed patches neither gap nor overlap "
+               "(off: the paper's flat micro-patches, which over-darken penumbrae of curved casters)"),
         Option("ssm_budget", 200.0, "Work Budget (M)",
                "Millions of soft-shadow-map texel updates allowed per occluder map; above it the maps are "
                "made coarser (the paper's remedy for large penumbrae, §5.1)", 1.0, 1.0e5),
@@ -108,7 +112,8 @@ class SoftShadowMaps(Technique):
     # ------------------------------------------------------------------------------------------------------
     def needs_for(self, s) -> tuple:
         return (need(SSM_MAPS, size=int(s.option("ssm_map_size")), budget=float(s.option("ssm_budget")) * 1e6,
-                     two_pass=s.option("ssm_passes") == "TWO", light_aspect=s.option("ssm_texels") == "LIGHT"),
+                     two_pass=s.option("ssm_passes") == "TWO", light_aspect=s.option("ssm_texels") == "LIGHT",
+                     facets=bool(s.option("ssm_facets"))),
                 need(SOFT_SHADOW_MAP, precision=s.option("ssm_precision"), method=s.option("ssm_scatter"),
                      weighted=s.option("ssm_weighting") == "IRRADIANCE"),
                 RECEIVER_MASK)

@@ -100,7 +100,7 @@ float weighted_fraction(vec4 ab, vec2 t, float zr) {
     vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
     vec4 light = vec4(-h, h) / zr - t.xyxy;
     float total = ff_rect(light);
-    return total > 0.0 ? clamp(ff_rect(rect) / total, 0.0, 1.0) : (ab.z - ab.x) * (ab.w - ab.y);
+    return total > 0.0 ? clamp(ff_rect(rect) / total, -1.0, 1.0) : (ab.z - ab.x) * (ab.w - ab.y);   // signed: facets
 }
 #endif
 
@@ -115,6 +115,50 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
     vec2 w = ab.zw - ab.xy;
 #if SSM_WEIGHTED
     if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
+#endif
+    return w.x * w.y;
+}
+
+#ifndef SSM_FACETS
+#define SSM_FACETS 0                    // 1: sloped facets in place of flat micro-patches (facet_occlusion)
+#endif
+uniform float u_facet_slope;        // texels of depth per texel below which two neighbours are one surface
+
+// Sloped facets (ours; the paper's micro-patches are flat, §3.2). A flat patch at its texel's depth leaves gaps
+// to a neighbour at another depth and overlaps it elsewhere, as seen from any receiver but the light's centre:
+// over a surface the light sees obliquely (a ball's flank) the summed patches over-darken the penumbra, since
+// the receiver sees that surface fold over itself. A facet instead spans its texel between edge depths shared
+// with its neighbours on the same surface, so along each axis neighbouring facets meet on the light, and one
+// that the receiver sees from behind (back-projected with its sides swapped) counts negatively: summed along a
+// row they give the stretch of light between the row's two outline points (a telescoping sum).
+//
+// Depth of the edge between texel ij and its neighbour ij + step: halfway to the neighbour's depth where both
+// are one surface (the same object, depths within u_facet_slope texel widths), else the texel's own.
+float edge_depth(sampler2D occluders, ivec2 ij, ivec2 step, float z, float object) {
+    ivec2 n = ij + step;
+    if (any(lessThan(n, ivec2(0))) || any(greaterThanEqual(n, u_map_size))) return z;
+    vec2 d = texelFetch(occluders, n, 0).xy;
+    if (!depth_valid(d.x) || d.y != object) return z;
+    if (abs(d.x - z) > u_facet_slope * texel_world(max(d.x, z))) return z;
+    return 0.5 * (z + d.x);
+}
+
+// The four edge depths of texel ij's facet (x0, x1, y0, y1), as 1/z in a perspective view and z in a sun's.
+vec4 facet_edges(sampler2D occluders, ivec2 ij, float z, float object) {
+    vec4 e = vec4(edge_depth(occluders, ij, ivec2(-1, 0), z, object), edge_depth(occluders, ij, ivec2(1, 0), z, object),
+                  edge_depth(occluders, ij, ivec2(0, -1), z, object), edge_depth(occluders, ij, ivec2(0, 1), z, object));
+    return u_ortho == 1 ? e : 1.0 / e;
+}
+
+// Signed share of the light a facet hides from a receiver at window position t, depth zr: its sides
+// d = (x0, y0, x1, y1) - t (window units) back-projected from their own edge depths (facet_edges).
+float facet_occlusion(vec4 d, vec4 edges, float zr, vec2 inv_2h, vec2 t) {
+    vec4 s = u_ortho == 1 ? zr - edges : edges - 1.0 / zr;       // each side's penumbra_spread
+    if (any(lessThanEqual(s, vec4(0.0)))) return 0.0;
+    vec4 ab = clamp(vec4(0.5) + d * (inv_2h.xyxy / s.xzyw), 0.0, 1.0);
+    vec2 w = ab.zw - ab.xy;                 // negative along an axis where the receiver sees the facet from behind
+#if SSM_WEIGHTED
+    if (w.x != 0.0 && w.y != 0.0) return weighted_fraction(ab, t, zr);     // ff_rect is odd: signed too
 #endif
     return w.x * w.y;
 }

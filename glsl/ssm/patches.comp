@@ -48,6 +48,8 @@ uniform sampler2D u_map;        // PASS 0: far receiver map; else the occluder m
 uniform dvec2 u_half;           // light half extent (metres, or tan for a sun)
 uniform dvec2 u_texel;          // texel size in window units
 uniform double u_bias;          // relative depth gap DEPTH_EPSILON
+uniform double u_facet_reach;   // sloped facets: how far in front of its patch an edge may lie (ssm_maps.py
+                                // facet_reach: metres for a sun, a share of the depth otherwise); 0: flat
 uniform int u_ortho;
 
 #if PASS == 2
@@ -71,8 +73,9 @@ bool micro_patch(ivec2 ij, double zr, out dvec4 rect, out double area, out vec2 
     double zo = double(depth_id.x);
     if (!(zo < zr * (1.0LF - u_bias))) return false;       // also every texel when no receiver (zr = 0)
     // §3.3: the extent at the farthest receiver is the patch widened by h·s on each side, s the penumbra
-    // spread; 1e-30 m keeps a patch on the light plane finite, 4× the map clamps it to cover the map.
-    precise double z = max(zo, 1e-30LF);
+    // spread (of the facet's nearest possible edge); 1e-30 m keeps a patch on the light plane finite, 4× the
+    // map clamps it to cover the map.
+    precise double z = max(u_ortho == 1 ? zo - u_facet_reach : zo * (1.0LF - u_facet_reach), 1e-30LF);
     precise double s = max(u_ortho == 1 ? zr - z : 1.0LF / z - 1.0LF / zr, 0.0LF);
     precise double gx = min(u_half.x * s / u_texel.x, 4.0LF * double(u_image_size.x));
     precise double gy = min(u_half.y * s / u_texel.y, 4.0LF * double(u_image_size.y));

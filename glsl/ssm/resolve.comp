@@ -8,6 +8,7 @@ uniform ivec2 u_image_size;
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(t, u_image_size))) return;
-    vec2 v = vec2(imageLoad(u_sum_near, t).r, imageLoad(u_sum_far, t).r) / FIXED_POINT;
+    // The sums are signed (sloped facets subtract): the bits as two's complement.
+    vec2 v = vec2(ivec2(imageLoad(u_sum_near, t).r, imageLoad(u_sum_far, t).r)) / FIXED_POINT;
     imageStore(u_ssm, t, vec4(v, 0.0, 0.0));
 }

@@ -1,5 +1,5 @@
 // SSM scatter as a compute pass (the alternative to instanced quads): one invocation per micro-patch loops
-// over its penumbra extent and adds the hidden fraction, in fixed point (1/FIXED_POINT units), with integer image
+// over its penumbra extent and adds the hidden fraction, in signed fixed point (1/FIXED_POINT units), with integer image
 // atomics — exact and order-independent, but serial per patch. A patch's texels are numbered row by row
 // and one dispatch adds [u_chunk · u_chunk_size, …) of them: a large rectangle (a patch near a big light
 // covers the whole map) would pass llvmpipe's loop limit in one (engine/gpu/loops.py).
@@ -18,6 +18,9 @@ uniform sampler2D u_near_c;
 uniform sampler2D u_far_a;
 uniform sampler2D u_far_b;
 uniform sampler2D u_far_c;
+#if SSM_FACETS
+uniform sampler2D u_occluders;  // the occluder map the patches come from (depth, object)
+#endif
 uniform int u_count;
 uniform int u_chunk;
 uniform int u_chunk_size;
@@ -30,7 +33,14 @@ float record_occlusion(Patch p, ivec2 texel, vec4 a, sampler2D b_map, sampler2D 
     vec2 t = map_window(vec2(texel) + 0.5);
     float zr = a.x;
     receiver_eye(r, t, zr);
+#if SSM_FACETS
+    if (!(zr > 0.0 && zr < EMPTY_DEPTH) || p.data.z >= zr * (1.0 - u_bias_texels)) return 0.0;
+    vec2 lo = map_window(p.data.xy), hi = lo + map_texel_window();
+    return facet_occlusion(vec4(lo - t, hi - t), facet_edges(u_occluders, ivec2(p.data.xy), p.data.z, p.data.w),
+                           zr, 0.5 / max(u_half, vec2(1e-9)), t);
+#else
     return patch_occlusion(p.data.xy, p.data.z, t, zr);
+#endif
 }
 
 void main() {
@@ -47,8 +57,9 @@ void main() {
     for (int k = k0; k < k1; ++k) {
         float on = record_occlusion(p, texel, texelFetch(u_near_a, texel, 0), u_near_b, u_near_c);
         float of = record_occlusion(p, texel, texelFetch(u_far_a, texel, 0), u_far_b, u_far_c);
-        if (on > 0.0) imageAtomicAdd(u_sum_near, texel, uint(on * FIXED_POINT + 0.5));
-        if (of > 0.0) imageAtomicAdd(u_sum_far, texel, uint(of * FIXED_POINT + 0.5));
+        // Signed (a facet seen from behind subtracts): two's complement, which uint addition wraps exactly.
+        if (on != 0.0) imageAtomicAdd(u_sum_near, texel, uint(int(round(on * FIXED_POINT))));
+        if (of != 0.0) imageAtomicAdd(u_sum_far, texel, uint(int(round(of * FIXED_POINT))));
         if (++texel.x == hi.x) texel = ivec2(lo.x, texel.y + 1);
     }
 }

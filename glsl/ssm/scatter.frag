@@ -12,6 +12,9 @@ uniform sampler2D u_far_c;
 flat in vec4 v_lohi;        // patch window rectangle: lo.xy, hi.xy
 flat in vec3 v_depth;       // zo, 1/zo, object of the patch
 flat in vec2 v_patch;       // its occluder texel
+#if SSM_FACETS
+flat in vec4 v_edges;       // its facet's edge depths (facet_edges)
+#endif
 layout(location = 0) out vec2 f_occlusion;
 
 // The share of the light this patch hides from the receiver of one record (a, b, c) of this texel, whose
@@ -21,7 +24,12 @@ float record_occlusion(ivec2 texel, vec4 a, sampler2D b_map, sampler2D c_map, ve
     if (!patch_can_shadow(r, v_patch, v_depth.x)) return 0.0;
     float zr = a.x;
     receiver_eye(r, t, zr);
+#if SSM_FACETS
+    if (!(zr > 0.0 && zr < EMPTY_DEPTH) || v_depth.x >= zr * (1.0 - u_bias_texels)) return 0.0;
+    return facet_occlusion(v_lohi - t.xyxy, v_edges, zr, inv_2h, t);
+#else
     return patch_occlusion_fast(v_lohi - t.xyxy, v_depth.x, v_depth.y, zr, inv_2h, tw1, t);
+#endif
 }
 
 void main() {

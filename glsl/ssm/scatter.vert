@@ -9,6 +9,10 @@ struct Patch {
 };
 layout(std430, binding = 0) readonly buffer Patches { Patch patches[]; };
 uniform int u_first;            // first patch of this draw (FP16 batching, appendix A)
+#if SSM_FACETS
+uniform sampler2D u_occluders;  // the occluder map the patches come from (depth, object)
+flat out vec4 v_edges;          // 1/depth (perspective) or depth (ortho) of the facet's x0, x1, y0, y1 edges
+#endif
 flat out vec4 v_lohi;
 flat out vec3 v_depth;
 flat out vec2 v_patch;         // the patch's occluder texel
@@ -21,5 +25,8 @@ void main() {
     v_lohi = vec4(lo, lo + map_texel_window());
     v_depth = vec3(p.data.z, 1.0 / p.data.z, p.data.w);
     v_patch = p.data.xy;
+#if SSM_FACETS
+    v_edges = facet_edges(u_occluders, ivec2(p.data.xy), p.data.z, p.data.w);
+#endif
     gl_Position = vec4(pos / vec2(u_map_size) * 2.0 - 1.0, 0.0, 1.0);
 }
