@@ -354,3 +354,26 @@ def test_sloped_facets_neither_gap_nor_overlap_over_a_curved_caster():
     print(errors)
     assert errors[True] < 0.02
     assert errors[False] > 3.0 * errors[True]
+
+
+def test_sloped_facets_of_a_sheet_the_receivers_see_from_the_lights_side():
+    """A 1.2 m sheet tilted 70° under an 8 m area light 1 m above it: the light reaches past the sheet's plane,
+    so receivers beside it see its lit side and its facets' back-projection turns over (a negative sum whose
+    size is the light the sheet hides). Against ray-traced visibility, measured: facets 0.0092, facets
+    clamped at 0 instead of taking the sum's size 0.0216, flat micro-patches 0.0209."""
+    from penumbra.engine.measure import stress
+    c, s = np.cos(np.radians(70.0)), np.sin(np.radians(70.0))
+    sheet = stress.quad((0, 0, 0), 0.6) @ np.array([[1, 0, 0], [0, c, -s], [0, s, c]]).T + np.array([0, 0, 1.0])
+    snap = stress.assemble([("Ground", stress.quad((0, 0, 0), 4.0), True, True), ("Sheet", sheet, True, True)],
+                           [stress.area_light((0.0, 0.0, 2.0), size=8.0)],
+                           stress.camera(eye=(0.0, -3.5, 4.5), size=40), "sheet")
+    oracle = stress.oracle(snap, n=10)["V"]
+    errors = {}
+    for facets in (True, False):
+        v = pipeline.render(snap, _ssm(ssm_facets=facets)).passes["Visibility"][..., 0]
+        shadow = np.isfinite(oracle) & ((v < 0.99) | (oracle < 0.99))
+        assert shadow.sum() > 800
+        errors[facets] = float(np.abs(v - oracle)[shadow].mean())
+    print(errors)
+    assert errors[True] < 0.015
+    assert errors[True] < 0.6 * errors[False]

@@ -29,8 +29,12 @@ float tap(ivec2 t, float d, float tol, out float w) {
     if (!(zn > 0.0 && zn < EMPTY_DEPTH)) return 0.0;
     if (!(zf > 0.0 && zf < EMPTY_DEPTH)) zf = zn;
     if (d < zn - tol || d > zf + tol) return 0.0;
-    vec2 occ = texelFetch(u_ssm_front, t, 0).rg;
-    if (u_two_pass == 1) occ = max(occ, texelFetch(u_ssm_back, t, 0).rg);
+    // Sloped facets (ssm/patch.glsl) sum signed, to the light a caster's outline hides as the receiver sees
+    // it, with the sign of the outline's orientation: negative where the receiver sees the lit side of the
+    // caster from the light's side (a sheet tilted so that part of a wide light lies behind it). Flat
+    // micro-patches sum non-negative.
+    vec2 occ = abs(texelFetch(u_ssm_front, t, 0).rg);
+    if (u_two_pass == 1) occ = max(occ, abs(texelFetch(u_ssm_back, t, 0).rg));
     w = 1.0;
     // The receiver whose depth the pixel matches best (an occluder 1 cm over the ground is within the
     // tolerance of both); strictly in between: interpolated by depth.
