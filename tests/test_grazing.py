@@ -179,10 +179,6 @@ TWICE_REFERENCE_XFAIL = {
                       "0.5, which makes suzanne, contact, tilted and slab worse)",
     ("tilted", "PCSS"): "one mean blocker depth: over a ball the blockers found are its top while its silhouette is "
                         "its equator, so the penumbra is sized for the wrong depth: 0.038 against 0.014",
-    ("grazing", "SSM"): "the floating bar's long shadow comes out too light, at any occluder-map size (256: 0.040, "
-                        "1024: 0.036 at 128²), with either weighting and with or without sloped facets; both "
-                        "weightings count the light as a receiver facing it would, and the ground sees it 85° off "
-                        "its normal (PCSS's taps weighted with the receiver's cosine: 0.050 -> 0.030)",
 }
 
 
@@ -198,7 +194,8 @@ def class_scenes():
 def test_soft_techniques_within_twice_reference_on_grazing_and_tilted_scenes(class_scenes, name, technique):
     """PCSS with an even vote over its taps → irradiance-weighted taps, 128² against Cycles 1024 spp (bench):
     grazing 0.050 → 0.030, cube 0.097 → 0.089, tilted 0.041 → 0.035. SSM's flat micro-patches → sloped facets
-    (ssm_facets): tilted 0.051 → 0.008, cube 0.020 → 0.005 (96² here: tilted 0.053 → 0.011)."""
+    (ssm_facets): tilted 0.051 → 0.008, cube 0.020 → 0.005 (96² here: tilted 0.053 → 0.011); SSM's irradiance
+    weighting with the receiver's own normal in place of one facing the light: grazing 0.038 → 0.009."""
     if name not in class_scenes:
         sc, snap, ref = _setup(name)
         best = metrics.compare(_visibility(snap, "REFERENCE"), ref.visibility, ref.mask)["mae_shadow"]

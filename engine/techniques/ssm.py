@@ -93,8 +93,8 @@ class SoftShadowMaps(Technique):
             ("RASTER", "Instanced Quads", "One quad per micro-patch, additive float blending (faster here)"),
             ("COMPUTE", "Compute + Atomics", "One invocation per micro-patch, fixed-point integer atomics"))),
         Option("ssm_weighting", "IRRADIANCE", "Weighting", "How a micro-patch's hidden part of the light counts",
-               items=(("IRRADIANCE", "Irradiance", "Weighted by its share of the light's irradiance at a "
-                       "receiver facing the light (parallel-rectangle form factor): closer to Cycles"),
+               items=(("IRRADIANCE", "Irradiance", "Weighted by its share of the light's irradiance at the "
+                       "receiver (rectangle form factor with the receiver's normal): closer to Cycles"),
                       ("UNIFORM", "Uniform (paper)", "Plain share of the light's area, as in the paper"))),
         Option("ssm_facets", True, "Sloped Facets",
                "Ours: each occluder texel spans its surface between depths shared with its neighbours, and counts "

@@ -86,12 +86,28 @@ float ff_rect(vec4 r) {          // x0, y0, x1, y1
     return ff_corner(r.z, r.w) - ff_corner(r.x, r.w) - ff_corner(r.z, r.y) + ff_corner(r.x, r.y);
 }
 
-// Hidden share of the light's irradiance at a receiver at window position t, depth zr, for the overlap `ab`
-// (normalised light coordinates [0, 1]²). A sun's light coordinates are direction tangents about its axis,
-// the same for every receiver: a direction (x, y, 1) stands for the solid angle cos³θ dx dy and a receiver
-// facing the sun weighs it by cosθ more, the parallel-rectangle integrand at unit height over the axis
-// (foot t = 0, zr = 1). Uniform in tangents, a wide sun's edge counted as much as its centre.
-float weighted_fraction(vec4 ab, vec2 t, float zr) {
+// The same for a receiver of normal n (light-view frame) that the whole light lies above: the integrand gains
+// the receiver's cosine, n·(a, b, 1)/(1 + a² + b²)², linear in n. Its a-term integrates to
+// -atan(b/√(1+a²))/√(1+a²) (twice the corner function, as ff_corner is), the b-term likewise.
+float tilted_corner(float a, float b, vec3 n) {
+    float ra = inversesqrt(1.0 + a * a), rb = inversesqrt(1.0 + b * b);
+    return n.z * (a * ra * atan(b * ra) + b * rb * atan(a * rb)) - n.x * ra * atan(b * ra) - n.y * rb * atan(a * rb);
+}
+
+float tilted_rect(vec4 r, vec3 n) {
+    return tilted_corner(r.z, r.w, n) - tilted_corner(r.x, r.w, n) - tilted_corner(r.z, r.y, n)
+         + tilted_corner(r.x, r.y, n);
+}
+
+// Hidden share of the light's irradiance at a receiver at window position t, depth zr, normal n, for the
+// overlap `ab` (normalised light coordinates [0, 1]²). A sun's light coordinates are direction tangents about
+// its axis, the same for every receiver: a direction (x, y, 1) stands for the solid angle cos³θ dx dy and the
+// receiver's cosine weighs it by n·(x, y, 1)/|(x, y, 1)| more, the same integrand at unit height over the axis
+// (foot t = 0, zr = 1). Where the receiver's horizon cuts the light (a corner at or below it) the linear form
+// would count light below the horizon negatively: there the receiver is taken as facing the light. At 128²
+// against Cycles 1024 spp, facing → own normal: grazing (the ground sees the light 85° off its normal) 0.038 →
+// 0.009, tilted 0.0079 → 0.0057, contact 0.0093 → 0.0073; no built-in scene worse by more than 0.0001.
+float weighted_fraction(vec4 ab, vec2 t, float zr, vec3 n) {
     if (u_ortho == 1) {
         t = vec2(0.0);
         zr = 1.0;
@@ -99,14 +115,18 @@ float weighted_fraction(vec4 ab, vec2 t, float zr) {
     vec2 h = max(u_half, vec2(1e-9));      // metres (tan for a sun): a zero-size light still divides
     vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
     vec4 light = vec4(-h, h) / zr - t.xyxy;
-    float total = ff_rect(light);
-    return total > 0.0 ? clamp(ff_rect(rect) / total, -1.0, 1.0) : (ab.z - ab.x) * (ab.w - ab.y);   // signed: facets
+    bool above = dot(n, vec3(light.xy, 1.0)) > 0.0 && dot(n, vec3(light.zy, 1.0)) > 0.0
+              && dot(n, vec3(light.xw, 1.0)) > 0.0 && dot(n, vec3(light.zw, 1.0)) > 0.0;
+    float total = above ? tilted_rect(light, n) : ff_rect(light);
+    float part = above ? tilted_rect(rect, n) : ff_rect(rect);
+    return total > 0.0 ? clamp(part / total, -1.0, 1.0) : (ab.z - ab.x) * (ab.w - ab.y);   // signed: facets
 }
 #endif
 
 // Lean form for the scatter's inner loop: d = (lo - t, hi - t) in window units, inv_zo = 1/zo, inv_2h =
 // 1/(2h), texel_world_1 = world size of a texel at unit depth (perspective) or its size (ortho).
-float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h, float texel_world_1, vec2 t) {
+float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h, float texel_world_1, vec2 t,
+                           vec3 n) {
     // The receiver's own surface is kept out by patch_can_shadow; this only guards the spread's sign.
     if (!(zr > 0.0 && zr < EMPTY_DEPTH) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     float s = u_ortho == 1 ? zr - zo : inv_zo - 1.0 / zr;     // penumbra_spread, 1/zo hoisted per patch
@@ -114,7 +134,7 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
     vec4 ab = clamp(vec4(0.5) + d * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
 #if SSM_WEIGHTED
-    if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
+    if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr, n);
 #endif
     return w.x * w.y;
 }
@@ -152,20 +172,20 @@ vec4 facet_edges(sampler2D occluders, ivec2 ij, float z, float object) {
 
 // Signed share of the light a facet hides from a receiver at window position t, depth zr: its sides
 // d = (x0, y0, x1, y1) - t (window units) back-projected from their own edge depths (facet_edges).
-float facet_occlusion(vec4 d, vec4 edges, float zr, vec2 inv_2h, vec2 t) {
+float facet_occlusion(vec4 d, vec4 edges, float zr, vec2 inv_2h, vec2 t, vec3 n) {
     vec4 s = u_ortho == 1 ? zr - edges : edges - 1.0 / zr;       // each side's penumbra_spread
     if (any(lessThanEqual(s, vec4(0.0)))) return 0.0;
     vec4 ab = clamp(vec4(0.5) + d * (inv_2h.xyxy / s.xzyw), 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;                 // negative along an axis where the receiver sees the facet from behind
 #if SSM_WEIGHTED
-    if (w.x != 0.0 && w.y != 0.0) return weighted_fraction(ab, t, zr);     // ff_rect is odd: signed too
+    if (w.x != 0.0 && w.y != 0.0) return weighted_fraction(ab, t, zr, n);     // ff_rect is odd: signed too
 #endif
     return w.x * w.y;
 }
 
 // Fraction of the light hidden by the patch of texel `patch` at depth zo from a receiver at window
 // position t, depth zr (receiver_eye). 0 when the patch is not strictly in front of the receiver.
-float patch_occlusion(vec2 patch_texel, float zo, vec2 t, float zr) {
+float patch_occlusion(vec2 patch_texel, float zo, vec2 t, float zr, vec3 n) {
     if (!depth_valid(zr)) return 0.0;
     vec2 tt = map_texel_window();
     if (zo >= zr * (1.0 - u_bias_texels)) return 0.0;
@@ -177,7 +197,7 @@ float patch_occlusion(vec2 patch_texel, float zo, vec2 t, float zr) {
     vec4 ab = clamp(vec4(0.5) + vec4(lo - t, hi - t) * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
 #if SSM_WEIGHTED
-    if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr);
+    if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr, n);
 #endif
     return w.x * w.y;
 }

@@ -37,9 +37,9 @@ float record_occlusion(Patch p, ivec2 texel, vec4 a, sampler2D b_map, sampler2D 
     if (!(zr > 0.0 && zr < EMPTY_DEPTH) || p.data.z >= zr * (1.0 - u_bias_texels)) return 0.0;
     vec2 lo = map_window(p.data.xy), hi = lo + map_texel_window();
     return facet_occlusion(vec4(lo - t, hi - t), facet_edges(u_occluders, ivec2(p.data.xy), p.data.z, p.data.w),
-                           zr, 0.5 / max(u_half, vec2(1e-9)), t);
+                           zr, 0.5 / max(u_half, vec2(1e-9)), t, r.normal);
 #else
-    return patch_occlusion(p.data.xy, p.data.z, t, zr);
+    return patch_occlusion(p.data.xy, p.data.z, t, zr, r.normal);
 #endif
 }
 
