@@ -13,6 +13,7 @@ from ..gpu.loops import chunk_count, chunk_uniforms
 from ..gpu.programs import bind_samplers, program, set_uniforms
 from ..gpu.state import gl_state
 from . import structure
+from ..core.snapshot import AREA, SUN
 from .ssm_maps import FACET_SLOPE, SSM_MAPS
 
 SOFT_SHADOW_MAP = "soft_shadow_map"
@@ -38,8 +39,11 @@ def build(frame, lc, precision: str, method: str, weighted: bool):
         return None
     frame.progress.check()
     with frame.timings.stage("ssm_scatter"):
-        ssms = [scatter(frame, maps, patches, precision, method, weighted, maps.maps[name] if maps.facets else None)
-                if patches.count else None for patches, name in zip(maps.patches, ("front", "back"))]
+        # The receiver's own normal in the weights for a planar emitter (an area light, a sun's directions);
+        # a sphere light's rectangle stands for a ball, whose light is not a plane's (see weighted_fraction).
+        planar = lc.light.kind in (AREA, SUN)
+        ssms = [scatter(frame, maps, patches, precision, method, weighted, maps.maps[name] if maps.facets else None,
+                        planar) if patches.count else None for patches, name in zip(maps.patches, ("front", "back"))]
     front = ssms[0] if ssms[0] is not None else _zero(frame, maps.view)
     back = ssms[1] if len(ssms) > 1 and ssms[1] is not None else None
     return SoftShadowMap(front, back)
@@ -59,17 +63,19 @@ def _zero(frame, view):
     return frame.texture((view.width, view.height), 2)     # zero-filled
 
 
-def scatter(frame, maps, patches, precision: str, method: str, weighted: bool, occluders=None):
+def scatter(frame, maps, patches, precision: str, method: str, weighted: bool, occluders=None,
+            planar: bool = True):
     """Sum the hidden light fraction of every micro-patch in `patches` (a PatchList, built on the GPU) into
     an RG soft shadow map (r: nearest receiver, g: farthest). §3.4 on the GPU; precision and batching per
     appendix A. The instance count and the batches come from the count the patch list read back.
     `occluders`: the occluder map the patches come from, for sloped facets (glsl/ssm/patch.glsl), or None
-    for the paper's flat micro-patches."""
+    for the paper's flat micro-patches. `planar`: a planar emitter, whose weights take the receiver's normal."""
     ctx, view = frame.ctx, maps.view
     size = (view.width, view.height)
     defines = {"SSM_WEIGHTED": int(weighted), "SSM_FACETS": int(occluders is not None)}
     uniforms = {**view.uniforms(), **frame.bias_uniforms, "u_half": maps.half, "u_ortho": int(view.is_ortho),
-                "u_bias_texels": maps.bias, "u_facet_slope": FACET_SLOPE}
+                "u_bias_texels": maps.bias, "u_facet_slope": FACET_SLOPE,
+                "u_receiver_normal": int(planar)}
     patches.buffer.bind_to_storage_buffer(0)
     m = patches.count
     receivers = {name: maps.maps[key] for name, key in (("u_near_a", "near"), ("u_near_b", "near_n"),
