@@ -42,8 +42,8 @@ def build(frame, lc, precision: str, method: str, weighted: bool):
         # The receiver's own normal in the weights for a planar emitter (an area light, a sun's directions);
         # a sphere light's rectangle stands for a ball, whose light is not a plane's (see weighted_fraction).
         planar = lc.light.kind in (AREA, SUN)
-        ssms = [scatter(frame, maps, patches, precision, method, weighted, maps.maps[name] if maps.facets else None,
-                        planar) if patches.count else None for patches, name in zip(maps.patches, ("front", "back"))]
+        ssms = [scatter(frame, maps, patches, precision, method, weighted, occ if maps.facets else None, planar)
+                if patches.count else None for patches, occ in zip(maps.patches, maps.occluder_maps())]
     front = ssms[0] if ssms[0] is not None else _zero(frame, maps.view)
     back = ssms[1] if len(ssms) > 1 and ssms[1] is not None else None
     return SoftShadowMap(front, back)

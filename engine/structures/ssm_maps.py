@@ -109,6 +109,8 @@ def ssm_view(view: LightView, half, size: int, light_aspect: bool = False) -> Li
 # FACET_SLOPE / 2 texel widths in front of its patch: the extents below reach that far.
 FACET_SLOPE = 8.0
 
+OCCLUDER_MAPS = ("front", "back")       # SsmMaps.maps keys of the occluder maps (back: two passes, §3.5)
+
 
 def facet_reach(view: LightView, facets: bool) -> float:
     """How far in front of its patch a sloped facet's edge may lie: in metres for a sun's view, as a share of
@@ -256,9 +258,8 @@ def reference_patches(frame, maps: "SsmMaps") -> list:
     far = frame.read(maps.maps["far"])[..., 0]
     valid = (far > 0.0) & (far < EMPTY_DEPTH)
     zr_max = float(far[valid].max()) if valid.any() else math.inf
-    names = ("front", "back")[:len(maps.patches)]
-    return [patch_list(frame.read(maps.maps[name]), maps.view, maps.half, zr_max, maps.bias, maps.facets)
-            for name in names]
+    return [patch_list(frame.read(occ), maps.view, maps.half, zr_max, maps.bias, maps.facets)
+            for occ in maps.occluder_maps()]
 
 
 def casters_reach_receivers(light, world_to_local, half, is_ortho: bool, casters, receivers) -> bool:
@@ -302,6 +303,10 @@ class SsmMaps:
     @property
     def nbytes(self) -> int:
         return resource_bytes(self.maps) + sum(p.nbytes for p in self.patches)
+
+    def occluder_maps(self) -> list:
+        """The occluder-map textures, in the order of `patches` (front; back with two passes)."""
+        return [self.maps[name] for name in OCCLUDER_MAPS[:len(self.patches)]]
 
 
 def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
@@ -376,7 +381,7 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
 
     bias = DEPTH_EPSILON
     budget *= lc.share          # the light's budget, split over its views by the pixels each holds
-    occluder_maps = ("front", "back") if two_pass else ("front",)
+    occluder_maps = OCCLUDER_MAPS if two_pass else OCCLUDER_MAPS[:1]
     attempts = 4
     for attempt in range(attempts):
         view = ssm_view(lc.view, half, size, light_aspect)

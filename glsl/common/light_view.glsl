@@ -270,6 +270,16 @@ vec3 view_direction(vec3 world_dir) {
 // (dΩ = cos³θ dA at unit height): with the receiver's cosine, (n·d)/|d|⁴ for d = (q, 1). Without that
 // density a wide sun's rim directions counted up to 1/cos³θ too much (15× at 66° off its axis).
 // Zero below the receiver's horizon: such a point carries no light, so it counts neither as lit nor occluded.
+// The light's own factor in a perspective view, for the unit direction `dir` from the receiver to a plane
+// point: a planar emitter's cosine; for a sphere's footprint the |cos| at which its rays cross the plane (a
+// region of the plane too, light_footprint: its unit area holds a solid angle of |cos| / d², the same density
+// as a planar emitter's); 1 otherwise.
+float emitter_cosine(vec3 dir) {
+    if (u_light_one_sided == 1) return max(-dot(dir, u_light_emit), 0.0);
+    if (u_light_sphere == 1) return abs(dir.z);
+    return 1.0;
+}
+
 float light_sample_weight(Receiver r, vec3 n, vec2 q) {
     if (u_light_ortho == 1) {
         vec3 d = vec3(q, 1.0);
@@ -279,10 +289,5 @@ float light_sample_weight(Receiver r, vec3 n, vec2 q) {
     vec3 to_sample = vec3(q, 0.0) - r.local;
     float d2 = max(dot(to_sample, to_sample), 1e-30);
     vec3 dir = to_sample * inversesqrt(d2);
-    float w = max(dot(n, dir), 0.0) / d2;
-    if (u_light_one_sided == 1) w *= max(-dot(dir, u_light_emit), 0.0);
-    // A sphere's footprint is a region of the plane too (light_footprint): its rays cross the plane's unit
-    // area in a solid angle of |cos| / d², the same density as a planar emitter's.
-    else if (u_light_sphere == 1) w *= abs(dir.z);
-    return w;
+    return max(dot(n, dir), 0.0) / d2 * emitter_cosine(dir);
 }

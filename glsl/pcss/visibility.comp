@@ -90,11 +90,13 @@ float tap_weight(Receiver r, vec3 n, vec2 q, vec2 shrink) {
     if (w <= 0.0) return 0.0;
     if (u_light_one_sided == 1) {
         if (off_axis_view()) return 1.0;
-        // The receiver's cosine and the light's, over squared distance (light_sample_weight's terms).
-        vec3 to_sample = vec3(q * shrink, 0.0) - r.local;
+        // light_sample_weight at the point the tap looks at, the receiver's cosine only where it may count;
+        // a tap whose own point q is above the horizon keeps a weight.
+        vec2 seen = q * shrink;
+        if (whole_light_above(r, n)) return max(light_sample_weight(r, n, seen), 1e-30);
+        vec3 to_sample = vec3(seen, 0.0) - r.local;
         float d2 = max(dot(to_sample, to_sample), 1e-30);
-        float cos_receiver = whole_light_above(r, n) ? max(dot(n, to_sample), 0.0) * inversesqrt(d2) : 1.0;
-        return max(cos_receiver * -dot(to_sample, u_light_emit) * inversesqrt(d2) / d2, 1e-30);
+        return max(emitter_cosine(to_sample * inversesqrt(d2)) / d2, 1e-30);
     }
     return is_rim_view() || u_light_sphere == 1 ? w : 1.0;
 }
@@ -122,13 +124,14 @@ void main() {
         Footprint f = light_footprint(r.local);
         // 1. Blocker search over the region the light can be seen through at the near plane.
         vec2 search = texels_per_unit(f, u_light_depth_range.x, d);
+        vec2 search_shrink = cap_shrink(search, u_light_depth_range.x, d);
         float blocker_sum = 0.0, blocker_weight = 0.0;
         // A rim view's receiver sees the sun through a sliver of the kernel's disk, which few of the pattern's
         // taps may hit: its search also looks along the view's axis, the rim point the view was chosen for
         // (fuzz 7119: mae_shadow 0.23 -> 0.064, the blocker was missed under most of the shadow).
         for (int i = is_rim_view() ? -1 : 0; i < u_blocker_samples; ++i) {
             vec2 q = i < 0 ? vec2(0.0) : light_point(f, kernel_point(i, u_blocker_samples, u_light_round, 0.0));
-            float w = tap_weight(r, n, q, cap_shrink(search, u_light_depth_range.x, d));
+            float w = tap_weight(r, n, q, search_shrink);
             if (w <= 0.0) continue;
             ivec2 t = ivec2(floor(r.map.xy + q * search));
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;

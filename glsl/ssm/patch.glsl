@@ -27,6 +27,12 @@ bool depth_valid(float z) {
     return z > 0.0 && z < EMPTY_DEPTH;
 }
 
+// The window rectangle (x0, y0, x1, y1) of the micro-patch of occluder texel `patch_texel`.
+vec4 patch_window(vec2 patch_texel) {
+    vec2 lo = map_window(patch_texel);
+    return vec4(lo, lo + map_texel_window());
+}
+
 // A receiver of one soft-shadow-map texel, from the records of ssm/receivers.comp (a: depth, point; b:
 // normal, bias with the through-surface flag as its sign; c: its own plane).
 Receiver ssm_receiver(vec4 a, vec4 b, float c) {
@@ -107,9 +113,9 @@ float tilted_rect(vec4 r, vec3 n) {
 // (foot t = 0, zr = 1). Where the receiver's horizon cuts the light (a corner at or below it) the linear form
 // would count light below the horizon negatively: there the receiver is taken as facing the light. So it is,
 // as before, for a sphere light, whose rectangle stands for a ball rather than a planar emitter (the normal's
-// terms are not measured there). At 128²
-// against Cycles 1024 spp, facing → own normal: grazing (the ground sees the light 85° off its normal) 0.038 →
-// 0.009, tilted 0.0079 → 0.0057, contact 0.0093 → 0.0073; no built-in scene worse by more than 0.0001.
+// terms are not measured there). At 128² against Cycles 1024 spp, facing → own normal: grazing (the ground
+// sees the light 85° off its normal) 0.038 → 0.009, tilted 0.0079 → 0.0057, contact 0.0093 → 0.0073; no
+// built-in scene worse by more than 0.0001.
 float weighted_fraction(vec4 ab, vec2 t, float zr, vec3 n) {
     if (u_ortho == 1) {
         t = vec2(0.0);
@@ -118,8 +124,9 @@ float weighted_fraction(vec4 ab, vec2 t, float zr, vec3 n) {
     vec2 h = max(u_half, vec2(1e-9));      // metres (tan for a sun): a zero-size light still divides
     // A light narrower than 0.05 zr (about 3°) takes its plain area share: the weights hardly vary over it, and
     // the form factors of its rectangles, corners that agree to first order, cancel to float32 noise of either
-    // sign (fuzz 1104, a 2.4 mm sphere light on the walls of a room around it: 0.001 with the plain share and
-    // with noise clamped at 0, 0.056 once facets let negative values through).
+    // sign (fuzz 1104, a 2.4 mm sphere light on the walls of a room around it: that noise clamped at 0 left the
+    // walls unshadowed, 0.001; let through once facets allowed negative shares, 0.056; the plain share 0.043,
+    // what the uniform weighting gives).
     if (max(h.x, h.y) < 0.05 * zr) return (ab.z - ab.x) * (ab.w - ab.y);
     vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
     vec4 light = vec4(-h, h) / zr - t.xyxy;
@@ -180,8 +187,10 @@ vec4 facet_edges(sampler2D occluders, ivec2 ij, float z, float object) {
 }
 
 // Signed share of the light a facet hides from a receiver at window position t, depth zr: its sides
-// d = (x0, y0, x1, y1) - t (window units) back-projected from their own edge depths (facet_edges).
-float facet_occlusion(vec4 d, vec4 edges, float zr, vec2 inv_2h, vec2 t, vec3 n) {
+// d = (x0, y0, x1, y1) - t (window units) back-projected from their own edge depths (facet_edges). 0, as for
+// a flat patch (patch_occlusion_fast), unless the patch's own depth zo is strictly in front of the receiver.
+float facet_occlusion(vec4 d, vec4 edges, float zo, float zr, vec2 inv_2h, vec2 t, vec3 n) {
+    if (!(zr > 0.0 && zr < EMPTY_DEPTH) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     vec4 s = u_ortho == 1 ? zr - edges : edges - 1.0 / zr;       // each side's penumbra_spread
     if (any(lessThanEqual(s, vec4(0.0)))) return 0.0;
     vec4 ab = clamp(vec4(0.5) + d * (inv_2h.xyxy / s.xzyw), 0.0, 1.0);
@@ -196,14 +205,12 @@ float facet_occlusion(vec4 d, vec4 edges, float zr, vec2 inv_2h, vec2 t, vec3 n)
 // position t, depth zr (receiver_eye). 0 when the patch is not strictly in front of the receiver.
 float patch_occlusion(vec2 patch_texel, float zo, vec2 t, float zr, vec3 n) {
     if (!depth_valid(zr)) return 0.0;
-    vec2 tt = map_texel_window();
     if (zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     float s = penumbra_spread(zo, zr, u_ortho);
     if (!(s > 0.0)) return 0.0;
-    vec2 lo = map_window(patch_texel), hi = lo + tt;
     // Light [-h, h] → [0, 1]:  a = 1/2 + (lo - t) / (2 h s).  Clamping keeps the infinities finite.
     vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);    // 1e-9 as in weighted_fraction
-    vec4 ab = clamp(vec4(0.5) + vec4(lo - t, hi - t) * k.xyxy, 0.0, 1.0);
+    vec4 ab = clamp(vec4(0.5) + (patch_window(patch_texel) - t.xyxy) * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
 #if SSM_WEIGHTED
     if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr, n);

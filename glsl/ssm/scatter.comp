@@ -1,8 +1,8 @@
 // SSM scatter as a compute pass (the alternative to instanced quads): one invocation per micro-patch loops
-// over its penumbra extent and adds the hidden fraction, in signed fixed point (1/FIXED_POINT units), with integer image
-// atomics — exact and order-independent, but serial per patch. A patch's texels are numbered row by row
-// and one dispatch adds [u_chunk · u_chunk_size, …) of them: a large rectangle (a patch near a big light
-// covers the whole map) would pass llvmpipe's loop limit in one (engine/gpu/loops.py).
+// over its penumbra extent and adds the hidden fraction, in signed fixed point (1/FIXED_POINT units), with
+// integer image atomics — exact and order-independent, but serial per patch. A patch's texels are numbered
+// row by row and one dispatch adds [u_chunk · u_chunk_size, …) of them: a large rectangle (a patch near a big
+// light covers the whole map) would pass llvmpipe's loop limit in one (engine/gpu/loops.py).
 #include "ssm/patch.glsl"
 layout(local_size_x = 64) in;
 struct Patch {
@@ -34,10 +34,9 @@ float record_occlusion(Patch p, ivec2 texel, vec4 a, sampler2D b_map, sampler2D 
     float zr = a.x;
     receiver_eye(r, t, zr);
 #if SSM_FACETS
-    if (!(zr > 0.0 && zr < EMPTY_DEPTH) || p.data.z >= zr * (1.0 - u_bias_texels)) return 0.0;
-    vec2 lo = map_window(p.data.xy), hi = lo + map_texel_window();
-    return facet_occlusion(vec4(lo - t, hi - t), facet_edges(u_occluders, ivec2(p.data.xy), p.data.z, p.data.w),
-                           zr, 0.5 / max(u_half, vec2(1e-9)), t, r.normal);
+    return facet_occlusion(patch_window(p.data.xy) - t.xyxy,
+                           facet_edges(u_occluders, ivec2(p.data.xy), p.data.z, p.data.w), p.data.z, zr,
+                           0.5 / max(u_half, vec2(1e-9)), t, r.normal);
 #else
     return patch_occlusion(p.data.xy, p.data.z, t, zr, r.normal);
 #endif

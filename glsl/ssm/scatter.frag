@@ -25,8 +25,7 @@ float record_occlusion(ivec2 texel, vec4 a, sampler2D b_map, sampler2D c_map, ve
     float zr = a.x;
     receiver_eye(r, t, zr);
 #if SSM_FACETS
-    if (!(zr > 0.0 && zr < EMPTY_DEPTH) || v_depth.x >= zr * (1.0 - u_bias_texels)) return 0.0;
-    return facet_occlusion(v_lohi - t.xyxy, v_edges, zr, inv_2h, t, r.normal);
+    return facet_occlusion(v_lohi - t.xyxy, v_edges, v_depth.x, zr, inv_2h, t, r.normal);
 #else
     return patch_occlusion_fast(v_lohi - t.xyxy, v_depth.x, v_depth.y, zr, inv_2h, tw1, t, r.normal);
 #endif

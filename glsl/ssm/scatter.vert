@@ -21,8 +21,7 @@ void main() {
     Patch p = patches[u_first + gl_InstanceID];
     vec2 corner = vec2(gl_VertexID & 1, gl_VertexID >> 1);
     vec2 pos = mix(p.rect.xy, p.rect.zw, corner);
-    vec2 lo = map_window(p.data.xy);
-    v_lohi = vec4(lo, lo + map_texel_window());
+    v_lohi = patch_window(p.data.xy);
     v_depth = vec3(p.data.z, 1.0 / p.data.z, p.data.w);
     v_patch = p.data.xy;
 #if SSM_FACETS
