@@ -200,3 +200,19 @@ def test_unshadowed_error_leaves_out_a_stray_lit_pixel_past_a_hard_light_edge():
     cycles[5, 5] = 0.02                      # a dim pixel we miss, with nothing of ours lit beside it
     mask = cycles[..., 0] > 0
     assert unshadowed_error(ours, cycles, mask) == pytest.approx(1.0 / 7.0)
+
+
+def test_unshadowed_error_counts_a_pixel_at_most_as_wholly_wrong():
+    """A pixel we light where Cycles has a trace of light (the last pixel before a floor crosses a large area
+    light's plane: fuzz seeds 1035, 1039) weighs as a pixel we leave dark does, not 500 times more; an image
+    lit 30 % too brightly everywhere still shows its 0.3."""
+    from penumbra.engine.measure.compare import unshadowed_error
+    cycles = np.full((6, 6, 3), 2.0)
+    ours = cycles.copy()
+    cycles[2, 3] = 2.0 / 500.0
+    mask = np.ones((6, 6), bool)
+    assert unshadowed_error(ours, cycles, mask) == pytest.approx(1.0 / 36.0)
+    ours[2, 3] = 0.0
+    cycles[2, 3] = 2.0
+    assert unshadowed_error(ours, cycles, mask) == pytest.approx(1.0 / 36.0)
+    assert unshadowed_error(cycles * 1.3, cycles, mask) == pytest.approx(0.3)
