@@ -176,6 +176,10 @@ def test_unshadowed_error_leaves_out_grazed_silhouette_pixels():
     cycles[1, 3] = 3.0                       # more than half its neighbour: only our Depth leaves it out
     assert unshadowed_error(ours, cycles, mask) == pytest.approx(1.0 / 5.0)
     assert unshadowed_error(ours, cycles, mask, depth, bg) == 0.0
+    cycles[1, 3] = 0.0
+    cycles[3, 3] = 0.03                      # grazed at a corner of our silhouette (fuzz seed 11017)
+    assert unshadowed_error(ours, cycles, mask | (cycles[..., 0] > 0), depth, bg) == 0.0
+    cycles[3, 3] = 0.0
     cycles[1, 3] = 0.03
     cycles[4, 4] = 5.0                       # a surface we miss entirely, far from our silhouette
     mask = cycles[..., 0] > 0
