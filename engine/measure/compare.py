@@ -187,7 +187,15 @@ def measure(snap, settings, result, ref, floor, ours_ms: float, samples: int, sh
 
 def unshadowed_error(ours: np.ndarray, cycles: np.ndarray, mask: np.ndarray, depth: np.ndarray | None = None,
                      background: float = 1.0e10) -> float:
-    """Mean relative error of our unshadowed radiance against Cycles' unshadowed render, over lit pixels.
+    """Mean relative error of our unshadowed radiance against Cycles' unshadowed render, over lit pixels
+    (unshadowed_terms); NaN where no pixel is lit."""
+    terms = unshadowed_terms(ours, cycles, mask, depth, background)
+    return float(np.mean(terms)) if len(terms) else float("nan")
+
+
+def unshadowed_terms(ours: np.ndarray, cycles: np.ndarray, mask: np.ndarray, depth: np.ndarray | None = None,
+                     background: float = 1.0e10) -> np.ndarray:
+    """The relative error of our unshadowed radiance against Cycles' unshadowed render at each lit pixel.
     The reference renders every surface white, so `ours` is E/π (the Irradiance pass over π). With our Depth
     pass, a pixel we leave uncovered beside a covered one is left out: its centre is off the surface, and
     Cycles' 0.01 px pixel filter (reference.POINT_FILTER_WIDTH) still grazes the silhouette in a few samples
@@ -210,9 +218,7 @@ def unshadowed_error(ours: np.ndarray, cycles: np.ndarray, mask: np.ndarray, dep
         lit &= covered | ~_beside(covered)
     brightest = _neighbour_max(b)
     lit &= (a > 0.0) | ~_beside(a > 0.0) | ~(b < 0.5 * brightest)
-    if not lit.any():
-        return float("nan")
-    return float(np.mean(np.minimum(np.abs(a[lit] - b[lit]) / b[lit], 1.0)))
+    return np.minimum(np.abs(a[lit] - b[lit]) / b[lit], 1.0)
 
 
 def _beside(m: np.ndarray) -> np.ndarray:
