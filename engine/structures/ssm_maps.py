@@ -299,6 +299,7 @@ class SsmMaps:
     skipped: bool = False
     enclosed: bool = False                   # skipped because a closed shell hides the light from every pixel
     facets: bool = False                     # sloped facets: the extents reach their edges (facet_reach)
+    horizon_cut: bool = False                # some receiver's horizon cuts the light (glsl/ssm/receivers.comp)
 
     @property
     def nbytes(self) -> int:
@@ -309,11 +310,12 @@ class SsmMaps:
         return [self.maps[name] for name in OCCLUDER_MAPS[:len(self.patches)]]
 
 
-def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
+def _draw_maps(frame, lc, view, half, casters, two_pass, mask) -> tuple[dict, bool]:
     """Occluder maps (front-most casters; farthest back faces, §3.5), linear depth from the light centre and
     object index (empty: NO_OCCLUDER or 0, index −1), and the receiver maps of the camera's receiver pixels
     (glsl/ssm/receivers.comp): near/far (depth, receiver point; 0: none), near_n/far_n (normal, bias) and
-    near_c/far_c (the receiver's own plane)."""
+    near_c/far_c (the receiver's own plane); and whether some receiver's horizon cuts the light (`half`: its half
+    extent), which compiles the scatter's clipped weights in."""
     prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
     jobs = [("front", casters, False, False)]
     if two_pass:
@@ -332,13 +334,17 @@ def _draw_maps(frame, lc, view, casters, two_pass, mask) -> dict:
         out[name] = frame.texture(size, 1)
     uniforms = {**view.uniforms(), **frame.bias_uniforms, "u_has_mask": int(mask is not None)}
     samplers = {"g_irradiance": lc.irradiance, "u_receiver_mask": mask if mask is not None else bits[0]}
-    frame.dispatch("ssm/receivers.comp", uniforms, samplers=samplers, images=bits, defines={"PASS": 0})
+    cut = frame.texture((1, 1), 1, dtype="u4")       # zero-filled
+    frame.dispatch("ssm/receivers.comp", {**uniforms, "u_half": half}, samplers=samplers,
+                   images={**bits, 2: cut}, defines={"PASS": 0})
+    horizon_cut = bool(np.frombuffer(cut.read(), np.uint32)[0])
+    frame.give_back(cut)
     frame.dispatch("ssm/receivers.comp", uniforms, samplers=samplers, defines={"PASS": 1},
                    images={**bits, 2: out["near"], 3: out["near_n"], 4: out["far"], 5: out["far_n"],
                            6: out["near_c"], 7: out["far_c"]})
     for t in bits.values():
         frame.give_back(t)
-    return out
+    return out, horizon_cut
 
 
 @structure(SSM_MAPS, requires=(RECEIVER_MASK,))
@@ -386,7 +392,7 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
     for attempt in range(attempts):
         view = ssm_view(lc.view, half, size, light_aspect)
         with frame.timings.stage("ssm_maps"):
-            maps = _draw_maps(frame, lc, view, casters, two_pass, lc.structures[RECEIVER_MASK])
+            maps, horizon_cut = _draw_maps(frame, lc, view, half, casters, two_pass, lc.structures[RECEIVER_MASK])
             counted = _count_patches(frame, view, half, [maps[n] for n in occluder_maps], maps["far"], bias,
                                      facet_reach(view, facets))
         work = sum(counted.works)
@@ -404,7 +410,8 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
     skipped = all(p.count == 0 for p in patches)
     if skipped:
         frame.count(ssm_lights_skipped=1)
-    return SsmMaps(casters, receivers, half, view, maps, patches, bias, skipped, facets=facets)
+    return SsmMaps(casters, receivers, half, view, maps, patches, bias, skipped, facets=facets,
+                   horizon_cut=horizon_cut)
 
 
 @structure(RECEIVER_MASK)

@@ -15,6 +15,10 @@
 #include "common/penumbra.glsl"
 // light_view.glsl: the SSM view's window and size (u_light_window, u_map_size), the receiver rule
 #include "common/light_view.glsl"
+#include "common/polygon.glsl"
+#ifndef SSM_HORIZON_CUT
+#define SSM_HORIZON_CUT 0               // 1: some receiver's horizon cuts the light (see weighted_fraction)
+#endif
 #ifndef SSM_WEIGHTED
 #define SSM_WEIGHTED 0                  // 1: occlusion weighted by irradiance (see weighted_fraction)
 #endif
@@ -106,14 +110,30 @@ float tilted_rect(vec4 r, vec3 n) {
          + tilted_corner(r.x, r.y, n);
 }
 
+// The irradiance (up to a constant) that rectangle r (x0, y0, x1, y1 in units of the height over its foot, as
+// tilted_rect's) carries to a receiver of normal n from its part above the receiver's horizon: Lambert's edge
+// formula (common/polygon.glsl) over the rectangle clipped to that part, written out edge by edge for the
+// scatter's inner loop. Signed as the rectangle's orientation, for facets.
+#define HORIZON_EMIT(p) { vec3 q = (p); if (have) sum += edge_term(prev, q, n); else { first = q; have = true; } prev = q; }
+#define HORIZON_EDGE(a, b) { float ha = dot(n, a), hb = dot(n, b); if ((ha >= 0.0) != (hb >= 0.0)) HORIZON_EMIT(a + (b - a) * (ha / (ha - hb))) if (hb >= 0.0) HORIZON_EMIT(b) }
+float rect_above_horizon(vec4 r, vec3 n) {
+    vec3 v0 = vec3(r.xy, 1.0), v1 = vec3(r.z, r.y, 1.0), v2 = vec3(r.zw, 1.0), v3 = vec3(r.x, r.w, 1.0);
+    float sum = 0.0;
+    vec3 first = vec3(0.0), prev = vec3(0.0);
+    bool have = false;
+    HORIZON_EDGE(v3, v0) HORIZON_EDGE(v0, v1) HORIZON_EDGE(v1, v2) HORIZON_EDGE(v2, v3)
+    if (have) sum += edge_term(prev, first, n);
+    return (r.z - r.x) * (r.w - r.y) < 0.0 ? -abs(sum) : abs(sum);
+}
+
 // Hidden share of the light's irradiance at a receiver at window position t, depth zr, normal n, for the
 // overlap `ab` (normalised light coordinates [0, 1]²). A sun's light coordinates are direction tangents about
 // its axis, the same for every receiver: a direction (x, y, 1) stands for the solid angle cos³θ dx dy and the
 // receiver's cosine weighs it by n·(x, y, 1)/|(x, y, 1)| more, the same integrand at unit height over the axis
 // (foot t = 0, zr = 1). Where the receiver's horizon cuts the light (a corner at or below it) the linear form
-// would count light below the horizon negatively: there the receiver is taken as facing the light. So it is,
-// as before, for a sphere light, whose rectangle stands for a ball rather than a planar emitter (the normal's
-// terms are not measured there). At 128² against Cycles 1024 spp, facing → own normal: grazing (the ground
+// would count light below the horizon negatively: there both shares are of the light's part above the horizon
+// (rect_above_horizon). A sphere light's receiver is taken as facing the light, as before: its rectangle
+// stands for a ball rather than a planar emitter (the normal's terms are not measured there). At 128² against Cycles 1024 spp, facing → own normal: grazing (the ground
 // sees the light 85° off its normal) 0.038 → 0.009, tilted 0.0079 → 0.0057, contact 0.0093 → 0.0073; no
 // built-in scene worse by more than 0.0001.
 float weighted_fraction(vec4 ab, vec2 t, float zr, vec3 n) {
@@ -130,11 +150,24 @@ float weighted_fraction(vec4 ab, vec2 t, float zr, vec3 n) {
     if (max(h.x, h.y) < 0.05 * zr) return (ab.z - ab.x) * (ab.w - ab.y);
     vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
     vec4 light = vec4(-h, h) / zr - t.xyxy;
-    bool tilted = u_receiver_normal == 1
-               && dot(n, vec3(light.xy, 1.0)) > 0.0 && dot(n, vec3(light.zy, 1.0)) > 0.0
-               && dot(n, vec3(light.xw, 1.0)) > 0.0 && dot(n, vec3(light.zw, 1.0)) > 0.0;
-    float total = tilted ? tilted_rect(light, n) : ff_rect(light);
-    float part = tilted ? tilted_rect(rect, n) : ff_rect(rect);
+    bool above = dot(n, vec3(light.xy, 1.0)) > 0.0 && dot(n, vec3(light.zy, 1.0)) > 0.0
+              && dot(n, vec3(light.xw, 1.0)) > 0.0 && dot(n, vec3(light.zw, 1.0)) > 0.0;
+    float total, part;
+#if SSM_HORIZON_CUT
+    if (u_receiver_normal == 1 && !above) {
+        // The horizon cuts the light: only its part above carries irradiance, and it is what the patches over
+        // the tangent plane (patch_can_shadow) hide. Both shares are of that part, weighed by the receiver's
+        // cosine, so a receiver that sees a wide light only in part is in umbra when that part is hidden
+        // (a ball over a floor that hides a 1.1 rad sun shining up at it: SSM left it 31 % lit).
+        total = rect_above_horizon(light, n);
+        part = rect_above_horizon(rect, n);
+    } else
+#endif
+    {
+        bool tilted = u_receiver_normal == 1 && above;
+        total = tilted ? tilted_rect(light, n) : ff_rect(light);
+        part = tilted ? tilted_rect(rect, n) : ff_rect(rect);
+    }
     return total > 0.0 ? clamp(part / total, -1.0, 1.0) : (ab.z - ab.x) * (ab.w - ab.y);   // signed: facets
 }
 #endif

@@ -9,6 +9,8 @@
 //
 // PASS 0  per pixel and texel: atomic max of the depth's bits (far) and of their complement (near);
 //         positive floats order as their bits, and 0 stays "no receiver" in both images
+//         and, per pixel, whether the receiver's horizon cuts the light's rectangle (u_cut: 1 if any does),
+//         which compiles the scatter's clipped weights in (ssm/patch.glsl weighted_fraction, SSM_HORIZON_CUT)
 // PASS 1  the same: the pixel whose depth won a texel writes that texel's records (ties: any one of them)
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
@@ -19,6 +21,10 @@ uniform sampler2D u_receiver_mask;  // g = 1 where the camera sees a receiver (o
 uniform int u_has_mask;
 layout(r32ui, binding = 0) uniform uimage2D u_near_bits;   // ~depth bits of the nearest pixel; 0: none
 layout(r32ui, binding = 1) uniform uimage2D u_far_bits;    // depth bits of the farthest pixel; 0: none
+#if PASS == 0
+uniform vec2 u_half;                // the light's half extent (metres, tan for a sun), as the scatter takes it
+layout(r32ui, binding = 2) uniform uimage2D u_cut;        // 1×1: 1 once a receiver's horizon cuts the light
+#endif
 #if PASS == 1
 // a: depth (0: no receiver), receiver point (light frame, normal-offset); b: its geometric normal (light
 // frame), its slope-scaled bias, negated (less 1) when the receiver is lit through its own surface; c: its
@@ -57,6 +63,14 @@ void main() {
     float reach = texel_world(m.z) * (1.0 + 1.5 * min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0));
     // The pixel goes into every texel its bilinear look-up in ssm/project.comp reads, so that each of them
     // holds a receiver range that includes it (a texel no camera pixel falls in would leave a hole).
+#if PASS == 0
+    // The light's corners relative to the receiver's foot in units of its height (weighted_fraction's frame).
+    vec2 t = u_light_ortho == 1 ? vec2(0.0) : p.xy / m.z;
+    vec4 corners = vec4(-u_half, u_half) / (u_light_ortho == 1 ? 1.0 : m.z) - t.xyxy;
+    if (dot(n, vec3(corners.xy, 1.0)) <= 0.0 || dot(n, vec3(corners.zy, 1.0)) <= 0.0
+            || dot(n, vec3(corners.xw, 1.0)) <= 0.0 || dot(n, vec3(corners.zw, 1.0)) <= 0.0)
+        imageAtomicMax(u_cut, ivec2(0), 1u);
+#endif
     ivec2 base = ivec2(floor(m.xy - 0.5));
     for (int k = 0; k < 4; ++k) {
         ivec2 t = base + ivec2(k & 1, k >> 1);
