@@ -142,6 +142,13 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
         world_to_local = turn @ world_to_local
         extent = extent @ np.asarray(face, float).T
     half = np.max(np.abs(extent[:, :2]), axis=0)
+    if light.kind == SUN and origin_local is None:
+        # A sun's extent is one of directions: tan of its half angle, about the view's axis in its own view and
+        # in a rim view alike (the techniques centre the sun's disk of tangents on the view's axis). A receiver
+        # sees it through the casters up to that tangent times their depth gap away: without it the window
+        # held only the receivers' own patch of a large caster (a floor over a ball, under a sun below it:
+        # SSM 0.71, BACKPROJECTION 0.28 against REFERENCE 0.005).
+        half = np.full(2, math.tan(min(light.angle / 2.0, SUN_MAX_HALF)))
     if casters is None:
         casters = receivers
     c_lo, c_hi = (np.asarray(v, float) for v in casters)
