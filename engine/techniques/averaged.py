@@ -314,8 +314,7 @@ def _probes(lc, count: int = 256) -> np.ndarray:
 
 
 def tilted_sun(light: Light, offset: np.ndarray) -> Light:
-    """The sun turned so that it shines along a direction of its disk, -Z + offset·(X, Y) normalised, as that one
-    direction (angle 0: its map needs no room for the rest of the disk, lightview.fit)."""
+    """The sun turned so that it shines along a direction of its disk: -Z + offset·(X, Y), normalised."""
     from dataclasses import replace
     m = np.array(light.matrix, float)
     forward = -m[:3, 2] + offset[0] * m[:3, 0] + offset[1] * m[:3, 1]
@@ -323,7 +322,7 @@ def tilted_sun(light: Light, offset: np.ndarray) -> Light:
     x = m[:3, 0] - forward * np.dot(m[:3, 0], forward)
     x /= np.linalg.norm(x)
     m[:3, 0], m[:3, 1], m[:3, 2] = x, np.cross(-forward, x), -forward
-    return replace(light, matrix=m, angle=0.0)
+    return replace(light, matrix=m)
 
 
 def light_extent(light: Light) -> float:
