@@ -116,7 +116,7 @@ def cell_corners(points: np.ndarray, cells: int = 24) -> np.ndarray:
 def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[np.ndarray, np.ndarray] | None,
         map_size: int, *, origin_local: np.ndarray | None = None, margin: float = 0.02,
         frame: np.ndarray | None = None, face: np.ndarray | None = None,
-        receiver_points: np.ndarray | None = None, sun_extent: bool = False) -> LightView:
+        receiver_points: np.ndarray | None = None) -> LightView:
     """Fit a light view to the receiver bounds (world AABB lo, hi) and the caster bounds.
 
     The window is the part of the receivers a caster can shadow (the casters' window widened by how far the
@@ -125,8 +125,7 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
     the eye to a point of the light (a REFERENCE sample); the frame keeps its axes and the light has no
     extent left around that eye. `frame` (the light's world→local matrix) and `face` (a rotation from it, see
     `split_faces`) make the view one face of a light seen through several views. `receiver_points` (world,
-    N × 3), the receivers themselves where the caller has them, replace their box's corners. `sun_extent`: a
-    sun's window makes room for its disk of directions too (Technique.gathers_light_extent).
+    N × 3), the receivers themselves where the caller has them, replace their box's corners.
     """
     r_lo, r_hi = (np.asarray(v, float) for v in receivers)
     world_to_light = light_frame(light, (r_lo + r_hi) / 2.0) if frame is None else np.asarray(frame, float)
@@ -143,15 +142,6 @@ def fit(light: Light, receivers: tuple[np.ndarray, np.ndarray], casters: tuple[n
         world_to_local = turn @ world_to_local
         extent = extent @ np.asarray(face, float).T
     half = np.max(np.abs(extent[:, :2]), axis=0)
-    if light.kind == SUN and sun_extent and origin_local is None:
-        # A sun's extent is one of directions: tan of its half angle, about the view's axis in its own view and
-        # in a rim view alike (the techniques centre the sun's disk of tangents on the view's axis). A receiver
-        # sees it through the casters up to that tangent times their depth gap away: without it the window
-        # held only the receivers' own patch of a large caster (a floor over a ball, under a sun below it:
-        # SSM 0.71, BACKPROJECTION 0.28 against REFERENCE 0.005). Only for the techniques that read the map
-        # that far: for the others it only coarsens the map (PVSM on fuzz 12065, a 180° sun over a room
-        # around the camera: 0.038 -> 0.176).
-        half = np.full(2, math.tan(min(light.angle / 2.0, SUN_MAX_HALF)))
     if casters is None:
         casters = receivers
     c_lo, c_hi = (np.asarray(v, float) for v in casters)

@@ -139,8 +139,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             stats["lights_unshadowed"] += 1
         else:
             with t.stage("light_view"):
-                sun_extent = technique.gathers_light_extent
-                view = lightview.fit(light, receivers, casters, settings.shadow_map_size, sun_extent=sun_extent)
+                view = lightview.fit(light, receivers, casters, settings.shadow_map_size)
                 parts = lit_xyz = lifted = None
                 # Only a clamped view can leave lit pixels outside, and only pixels with the light's centre
                 # below their horizon need rim views: read the lit pixels back then; and on smooth triangles
@@ -156,7 +155,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
                         # The lit points bound the window tighter than their box, whose corners can straddle
                         # the light's plane where no lit point does (fuzz 8217: a tilted light over a floor)
                         view = lightview.fit(light, receivers, casters, settings.shadow_map_size,
-                                             receiver_points=_with_lifted(lit_xyz, lifted), sun_extent=sun_extent)
+                                             receiver_points=_with_lifted(lit_xyz, lifted))
                     parts = _view_parts(light, view, lit_xyz, lifted, normal, geometric, rim=hidden > 0)
             if parts is None:
                 points = None if lit_xyz is None else _with_lifted(lit_xyz, lifted)
@@ -372,8 +371,7 @@ def _face_visibility(frame: Frame, technique, light, view, view_receivers, view_
                 with t.stage("light_view"):
                     size = frame.settings.shadow_map_size
                     face_view = lightview.fit(part_light, receivers, casters, size, frame=part.frame,
-                                              face=part.rotation, receiver_points=pts,
-                                              sun_extent=technique.gathers_light_extent)
+                                              face=part.rotation, receiver_points=pts)
                     # a part's map only as fine as the pixels it holds need (the light's own view keeps the
                     # size the settings ask for)
                     needed = lightview.needed_map_size(face_view, lit_xyz[part.mask], frame.snap.camera, size)

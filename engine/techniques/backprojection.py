@@ -211,7 +211,6 @@ class Backprojection(Technique):
                    "peeling. Area lights of every shape, point/spot radius as a disk, sun as a disk of "
                    "directions; textured lights through per-sample colours")
     rim_views = True
-    gathers_light_extent = True
     needs = (DEPTH_MAP, PEELED_LAYERS, HSM, MSSM, YSM, MICRORECTS, COVERAGE)  # all it may use; needs_for picks
     options = (
         Option("bp_primitive", "MICRORECT", "Micro-occluders", "How depth-map texels become occluders",

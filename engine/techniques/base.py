@@ -72,10 +72,6 @@ class Technique:
     # the pipeline then reads back where the lit pixels' shadow rays leave from (LightContext.receiver_points,
     # the terminator lift included), so that those views hold a lifted start instead of losing it off the map.
     fits_sample_views = False
-    # The technique reads the map wherever a receiver sees the light through it, not within a kernel capped in
-    # the map (SSM's scatter, BACKPROJECTION's search area): a sun's views make room for its disk of directions
-    # (lightview.fit's sun_extent), as every light's do for a local light's extent.
-    gathers_light_extent = False
 
     def needs_for(self, settings) -> tuple:
         """The structures to build for `settings` (names, or structures.need(NAME, **params) where options

@@ -73,7 +73,6 @@ class SoftShadowMaps(Technique):
                    "Casters shadow receivers (Object → Penumbra → Shadow Role), an object itself too; "
                    "disk, ellipse, sphere and sun lights use their bounding rectangle")
     rim_views = True
-    gathers_light_extent = True
     needs = (SSM_MAPS, SOFT_SHADOW_MAP, RECEIVER_MASK)    # with parameters from the options: needs_for
     options = (
         Option("ssm_map_size", 256, "Occluder Map Size",
