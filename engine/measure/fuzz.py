@@ -323,15 +323,17 @@ UNSHADOWED_ABS = 0.02
 EDGE_PIXELS = 2
 
 
+def _noise_and_edges(floor: float, n: int, factor: float = 1.0) -> float:
+    """The scene's Cycles noise floor (0 where unknown) times `factor`, plus EDGE_PIXELS of `n` pixels."""
+    return factor * (floor if math.isfinite(floor) else 0.0) + (EDGE_PIXELS / n if n > 0 else 0.0)
+
+
 def unshadowed_bound(floor: float, n_lit: int) -> float:
-    floor = floor if math.isfinite(floor) else 0.0
-    return floor + UNSHADOWED_ABS + (EDGE_PIXELS / n_lit if n_lit > 0 else 0.0)
+    return _noise_and_edges(floor, n_lit) + UNSHADOWED_ABS
 
 
 def bound(technique: str, floor: float, n_shadow: int = 0) -> float:
-    floor = floor if math.isfinite(floor) else 0.0
-    edge = EDGE_PIXELS / n_shadow if n_shadow > 0 else 0.0
-    return BOUND_FLOOR_FACTOR * floor + BOUND_ABS.get(technique, BOUND_ABS_DEFAULT) + edge
+    return _noise_and_edges(floor, n_shadow, BOUND_FLOOR_FACTOR) + BOUND_ABS.get(technique, BOUND_ABS_DEFAULT)
 
 
 @dataclass

@@ -2,7 +2,7 @@
 //     E = L/2 · |Σ_i θ_i · n·ĝ_i|,  θ_i = angle between v_i and v_{i+1},  ĝ_i = normalize(v_i × v_{i+1}),
 // over the polygon clipped to the receiver's upper hemisphere (vertices relative to the receiver). The
 // unoccluded irradiance of every extended light (shading/irradiance.glsl) and SSM's share of a light that the
-// receiver's horizon cuts (ssm/project.comp) both use it.
+// receiver's horizon cuts (ssm/patch.glsl weighted_fraction) both use it.
 #ifndef POLYGON_GLSL
 #define POLYGON_GLSL
 
@@ -33,9 +33,8 @@ vec3 polygon_vertex(int i, vec3 center, vec3 u, vec3 v, int sides) {
     return center + k * (cos(phi) * u + sin(phi) * v);
 }
 
-// Σ of Lambert edge terms, each weighed by normal w, over the polygon clipped to n·v ≥ 0; vertices relative to
-// the receiver.
-float polygon_sum_above(vec3 center, vec3 u, vec3 v, int sides, vec3 n, vec3 w) {
+// Σ of Lambert edge terms over the polygon clipped to n·v ≥ 0; vertices relative to the receiver.
+float clipped_polygon_sum(vec3 center, vec3 u, vec3 v, int sides, vec3 n) {
     // Usually the whole light is above the receiver's horizon: sum the edges directly.
     bool above = true;
     for (int i = 0; i < sides; ++i) {
@@ -46,7 +45,7 @@ float polygon_sum_above(vec3 center, vec3 u, vec3 v, int sides, vec3 n, vec3 w) 
         vec3 a = polygon_vertex(sides - 1, center, u, v, sides);
         for (int i = 0; i < sides; ++i) {
             vec3 b = polygon_vertex(i, center, u, v, sides);
-            direct += edge_term(a, b, w);
+            direct += edge_term(a, b, n);
             a = b;
         }
         return abs(direct);
@@ -67,19 +66,21 @@ float polygon_sum_above(vec3 center, vec3 u, vec3 v, int sides, vec3 n, vec3 w) 
         }
         if (hb >= 0.0) out_pts[count++] = b;
         for (int k = 0; k < count; ++k) {
-            if (have) sum += edge_term(prev, out_pts[k], w); else { first = out_pts[k]; have = true; }
+            if (have) sum += edge_term(prev, out_pts[k], n); else { first = out_pts[k]; have = true; }
             prev = out_pts[k];
         }
         a = b;
         ha = hb;
     }
-    if (have) sum += edge_term(prev, first, w);
+    if (have) sum += edge_term(prev, first, n);
     return abs(sum);
 }
 
-// The same weighed by the receiver's own normal: its irradiance from the polygon, up to L/2.
-float clipped_polygon_sum(vec3 center, vec3 u, vec3 v, int sides, vec3 n) {
-    return polygon_sum_above(center, u, v, sides, n, n);
+// Whether rectangle r (x0, y0, x1, y1) in the plane z = 1 lies wholly above the plane through the origin with
+// normal n: SSM's light seen from a receiver at its foot (ssm/patch.glsl weighted_fraction, ssm/receivers.comp).
+bool rect_above(vec4 r, vec3 n) {
+    return dot(n, vec3(r.xy, 1.0)) > 0.0 && dot(n, vec3(r.zy, 1.0)) > 0.0
+        && dot(n, vec3(r.xw, 1.0)) > 0.0 && dot(n, vec3(r.zw, 1.0)) > 0.0;
 }
 
 #endif

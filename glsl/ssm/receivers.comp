@@ -14,6 +14,7 @@
 // PASS 1  the same: the pixel whose depth won a texel writes that texel's records (ties: any one of them)
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
+#include "common/polygon.glsl"
 #ifndef PASS
 #define PASS 0
 #endif
@@ -67,9 +68,7 @@ void main() {
     // The light's corners relative to the receiver's foot in units of its height (weighted_fraction's frame).
     vec2 t = u_light_ortho == 1 ? vec2(0.0) : p.xy / m.z;
     vec4 corners = vec4(-u_half, u_half) / (u_light_ortho == 1 ? 1.0 : m.z) - t.xyxy;
-    if (dot(n, vec3(corners.xy, 1.0)) <= 0.0 || dot(n, vec3(corners.zy, 1.0)) <= 0.0
-            || dot(n, vec3(corners.xw, 1.0)) <= 0.0 || dot(n, vec3(corners.zw, 1.0)) <= 0.0)
-        imageAtomicMax(u_cut, ivec2(0), 1u);
+    if (!rect_above(corners, n)) imageAtomicMax(u_cut, ivec2(0), 1u);
 #endif
     ivec2 base = ivec2(floor(m.xy - 0.5));
     for (int k = 0; k < 4; ++k) {
