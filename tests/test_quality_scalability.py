@@ -421,6 +421,8 @@ def test_gather_split_over_dispatches_equals_one_dispatch(tilted, monkeypatch, o
     near-field split, whose cap on split parts counts per dispatch (a split gather may split more cells)."""
     from penumbra.engine.techniques import backprojection
     options = {"bp_split": 0.0, **options}
+    # One dispatch: this small scene's gathers stay far below llvmpipe's limit, whatever the bound says.
+    monkeypatch.setattr(backprojection, "CHUNK_CELLS", 1 << 20)
     whole = pipeline.render(tilted, bp(collect_stats=True, **options))
     monkeypatch.setattr(backprojection, "CHUNK_CELLS", 97)
     split = pipeline.render(tilted, bp(collect_stats=True, **options))
@@ -428,6 +430,23 @@ def test_gather_split_over_dispatches_equals_one_dispatch(tilted, monkeypatch, o
     assert split.stats["per_light"][0]["gather_dispatches"] > 2
     a, b = whole.passes["Visibility"][..., 0], split.passes["Visibility"][..., 0]
     assert (a < 0.5).sum() > 100 and np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("split", [0.0, 0.3])
+def test_forced_coarse_level_does_not_depend_on_the_dispatch_share(monkeypatch, split):
+    """A forced level 1 visits every cell of the map and refits each: its refit's per-part loop once ran
+    llvmpipe past its loop limit in the default shares of the gather (engine/gpu/loops.py), found no part,
+    and dropped the coarse microrects (umbra leaking; microrects have 9 parts, micropatches 4). Shares of a sixteenth must give the same image.
+    A 3 m light 1 m over the taller plate: search areas of ~200 level-1 cells a side."""
+    from penumbra.engine.techniques import backprojection
+    plates = tilted_scene()
+    plates.lights[:] = [stress.area_light((0.0, 0.0, 2.7), size=3.0)]
+    options = dict(bp_force_level=1, bp_split=split, bp_blend=False)
+    whole = _vis(plates, bp(512, **options))
+    monkeypatch.setattr(backprojection, "CHUNK_CELLS", backprojection.CHUNK_CELLS // 16)
+    small = _vis(plates, bp(512, **options))
+    assert (small < 0.5).sum() > 100
+    assert np.array_equal(whole, small), float(np.abs(whole - small).max())
 
 
 # ------------------------------------------------------------------------------------------------------------

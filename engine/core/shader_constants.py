@@ -25,6 +25,9 @@ LOQ_INTEGER, LOQ_WRITE, LOQ_BLEND = 0, 1, 3
 # parts' box at their minimum or mean depth, the cell's own box at their mean depth, or the parts' box at
 # their mean depth tilted by their depth slope.
 REFIT_NONE, REFIT_EXTENT, REFIT_MEAN, REFIT_DEPTH, REFIT_PLANE = 0, 1, 2, 3, 4
+# The finer parts a coarse refit looks at: a microrect's level-(l − 1) neighbourhood 2c + {−1, 0, 1}², a
+# micropatch's 2×2 cells (a loop whose iterations llvmpipe's limit counts: techniques/backprojection.py).
+REFIT_PARTS_MICRORECT, REFIT_PARTS_MICROPATCH = 9, 4
 
 # REFERENCE's sample weights (u_weight_mode).
 WEIGHT_NONE = 0             # plain average of the hard maps

@@ -422,9 +422,9 @@ bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
 // backproject_tilted), returned in `slope` (depth per level-0 texel in x and y, and the parts' nearest depth;
 // zero slope for the other refits). False: no part occludes.
 #if PRIMITIVE == PRIMITIVE_MICRORECT
-const int REFIT_PARTS = 9;
+const int REFIT_PARTS = REFIT_PARTS_MICRORECT;
 #else
-const int REFIT_PARTS = 4;
+const int REFIT_PARTS = REFIT_PARTS_MICROPATCH;
 #endif
 
 bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, inout vec2 p1, out vec3 slope) {
