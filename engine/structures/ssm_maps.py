@@ -310,12 +310,13 @@ class SsmMaps:
         return [self.maps[name] for name in OCCLUDER_MAPS[:len(self.patches)]]
 
 
-def _draw_maps(frame, lc, view, half, casters, two_pass, mask) -> tuple[dict, bool]:
+def _draw_maps(frame, lc, view, half, casters, two_pass, mask) -> tuple[dict, object]:
     """Occluder maps (front-most casters; farthest back faces, §3.5), linear depth from the light centre and
     object index (empty: NO_OCCLUDER or 0, index −1), and the receiver maps of the camera's receiver pixels
     (glsl/ssm/receivers.comp): near/far (depth, receiver point; 0: none), near_n/far_n (normal, bias) and
-    near_c/far_c (the receiver's own plane); and whether some receiver's horizon cuts the light (`half`: its half
-    extent), which compiles the scatter's clipped weights in."""
+    near_c/far_c (the receiver's own plane); and a 1×1 flag, non-zero where some receiver's horizon cuts the
+    light (`half`: its half extent), which compiles the scatter's clipped weights in (read with the patch
+    counts, `_horizon_cut`: one wait for the GPU instead of two)."""
     prog = program(frame.worker, "common/depth.vert", "ssm/depth.frag")
     jobs = [("front", casters, False, False)]
     if two_pass:
@@ -337,14 +338,19 @@ def _draw_maps(frame, lc, view, half, casters, two_pass, mask) -> tuple[dict, bo
     cut = frame.texture((1, 1), 1, dtype="u4")       # zero-filled
     frame.dispatch("ssm/receivers.comp", {**uniforms, "u_half": half}, samplers=samplers,
                    images={**bits, 2: cut}, defines={"PASS": 0})
-    horizon_cut = bool(np.frombuffer(cut.read(), np.uint32)[0])
-    frame.give_back(cut)
     frame.dispatch("ssm/receivers.comp", uniforms, samplers=samplers, defines={"PASS": 1},
                    images={**bits, 2: out["near"], 3: out["near_n"], 4: out["far"], 5: out["far_n"],
                            6: out["near_c"], 7: out["far_c"]})
     for t in bits.values():
         frame.give_back(t)
-    return out, horizon_cut
+    return out, cut
+
+
+def _horizon_cut(frame, cut) -> bool:
+    """_draw_maps' flag, read once the patch counts have been (the GPU is done with it by then)."""
+    flag = bool(np.frombuffer(cut.read(), np.uint32)[0])
+    frame.give_back(cut)
+    return flag
 
 
 @structure(SSM_MAPS, requires=(RECEIVER_MASK,))
@@ -392,9 +398,10 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
     for attempt in range(attempts):
         view = ssm_view(lc.view, half, size, light_aspect)
         with frame.timings.stage("ssm_maps"):
-            maps, horizon_cut = _draw_maps(frame, lc, view, half, casters, two_pass, lc.structures[RECEIVER_MASK])
+            maps, cut = _draw_maps(frame, lc, view, half, casters, two_pass, lc.structures[RECEIVER_MASK])
             counted = _count_patches(frame, view, half, [maps[n] for n in occluder_maps], maps["far"], bias,
                                      facet_reach(view, facets))
+            horizon_cut = _horizon_cut(frame, cut)
         work = sum(counted.works)
         if work <= budget or size <= 32 or attempt == attempts - 1:     # the last attempt's maps are kept
             break
