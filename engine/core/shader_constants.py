@@ -26,8 +26,10 @@ LOQ_INTEGER, LOQ_WRITE, LOQ_BLEND = 0, 1, 3
 # their mean depth tilted by their depth slope.
 REFIT_NONE, REFIT_EXTENT, REFIT_MEAN, REFIT_DEPTH, REFIT_PLANE = 0, 1, 2, 3, 4
 # The finer parts a coarse refit looks at: a microrect's level-(l − 1) neighbourhood 2c + {−1, 0, 1}², a
-# micropatch's 2×2 cells (a loop whose iterations llvmpipe's limit counts: techniques/backprojection.py).
+# micropatch's 2×2 cells; and the corners REFIT_PLANE tilts (loops whose iterations llvmpipe's limit counts:
+# techniques/backprojection.py cell_iterations).
 REFIT_PARTS_MICRORECT, REFIT_PARTS_MICROPATCH = 9, 4
+REFIT_CORNERS = 4
 
 # REFERENCE's sample weights (u_weight_mode).
 WEIGHT_NONE = 0             # plain average of the hard maps

@@ -45,7 +45,7 @@ from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UN
                                      CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
                                      REFINE_MSSM, REFINE_NONE, REFINE_YSM, REFIT_DEPTH, REFIT_EXTENT, REFIT_MEAN, REFIT_PLANE,
-                                     REFIT_NONE, REFIT_PARTS_MICROPATCH, REFIT_PARTS_MICRORECT)
+                                     REFIT_CORNERS, REFIT_NONE, REFIT_PARTS_MICROPATCH, REFIT_PARTS_MICRORECT)
 from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from ..gpu import loops
 from ..structures import need
@@ -185,13 +185,13 @@ def cell_iterations(defines: dict, coarse: bool) -> int:
     """Loop iterations one micro-occluder may cost a gather, all of which llvmpipe's limit counts (CHUNK_CELLS):
     its own; the near-field split's two loops, which run for every micro-occluder even where they split
     nothing (with b = ∞ the split's mere presence changed the visibility); and where levels above 0 can be
-    gathered (`coarse`), the coarse refit's loop over its parts. Counting the cells and the split alone let a
+    gathered (`coarse`), the coarse refit's loops over its parts and (REFIT_PLANE) its corners. Counting the cells and the split alone let a
     forced level 1 run past the limit: the refit found no part, every coarse microrect was dropped and the
     umbra leaked (tilted at 128², level 1: mae_shadow 0.17, 0.0066 counted). Unrolling the refit instead
     made every frame slower on llvmpipe (tilted 1.6 → 2.9 s) than the extra dispatches (1.6 → 1.7 s)."""
     n = 1 + (2 if defines["SPLIT"] else 0)
     if coarse and defines["REFIT"] != REFIT_NONE:
-        n += REFIT_PARTS.get(defines["PRIMITIVE"], 0)
+        n += REFIT_PARTS.get(defines["PRIMITIVE"], 0) + (REFIT_CORNERS if defines["REFIT"] == REFIT_PLANE else 0)
     return n
 
 
@@ -202,12 +202,13 @@ def budget_max_of(o) -> float:
                else float(o["bp_budget_low"]) if mode == "IMPORTANCE" else 0.0)
 
 
-# Finer micro-occluders the near-field split (bp_split) may add per pixel and gather (per dispatch when
-# chunked): next to a contact cells split down to level 0, whatever the budget. The cap keeps llvmpipe's
-# shared loop counter (one per SIMD group of 8 lanes, engine/gpu/loops.py) below its limit: a dispatch's two
-# gathers of CHUNK_CELLS each plus 8 lanes' parts, 2·(16384 + 8·1024) = 49152 < 65535 (a cap of 4096 was
-# seen to pass it: garbage).
-SPLIT_EXTRA = 1024
+# Loop iterations the near-field split (bp_split) may add per pixel and gather (per dispatch when chunked),
+# each finer part costing its own and its refit's (visibility.comp part_iterations): next to a contact cells
+# split down to level 0, whatever the budget. The cap keeps llvmpipe's loop counter (one per SIMD group of
+# 8 lanes that run a loop together, engine/gpu/loops.py) below its limit: a dispatch's two gathers of
+# CHUNK_CELLS iterations each plus their parts', 2·(16384 + 8192) = 49152 < 65535. A cap of 1024 parts,
+# counted alone, let parts of level 1 and above pass it (bp_split 0.1 on tilted at 128²: light streaks).
+SPLIT_EXTRA = 8192
 
 
 def _mask_rows(valid: np.ndarray) -> list[int]:

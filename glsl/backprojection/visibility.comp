@@ -573,7 +573,7 @@ void backproject_tilted(Pixel p, vec2 p0, vec2 p1, float z, vec3 slope, inout ve
     if (slope.x == 0.0 && slope.y == 0.0) return;
     vec2 mid = 0.5 * (p0 + p1);
     vec2 v[4];
-    for (int i = 0; i < 4; ++i) {
+    for (int i = 0; i < REFIT_CORNERS; ++i) {
         vec2 q = vec2((i & 1) == 0 ? p0.x : p1.x, (i >> 1) == 0 ? p0.y : p1.y);
         float deepest = min(receiver_depth_at(p.r, q), p.d) * (1.0 - CONTACT_GAP);
         float zq = clamp(z + dot(slope.xy, q - mid), min(slope.z, deepest), deepest);
@@ -898,6 +898,18 @@ Occlusion no_occlusion() {
 #define ADD_OCCLUDER(o, a, b, area) { (o).area += (area); }
 #endif
 
+#if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
+// Loop iterations one split part of level f costs, which u_split_extra counts (llvmpipe's loop limit,
+// engine/gpu/loops.py): its own, and when f > 0 the coarse refit's loop over its parts and the tilted refit's
+// over its corners (backproject_tilted). A cap on parts alone let parts of level 1 and above take a split
+// gather past the limit: bp_split 0.1 on tilted at 128² came out in light streaks (mae_shadow 0.041, 0.017
+// counted).
+int part_iterations(int f) {
+    if (REFIT == REFIT_NONE || f == 0) return 1;
+    return 1 + REFIT_PARTS + (REFIT == REFIT_PLANE ? REFIT_CORNERS : 0);
+}
+#endif
+
 void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occlusion o, inout float count) {
     if (i1 <= i0) return;
     ivec2 first = (lo >> l) - QUAD_EXTRA, last = hi >> l;
@@ -950,13 +962,13 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
             s1 = min(((c + 1) << k) - 1, ((u_map_size + (1 << f) - 1) >> f) - 1);
 #endif
             ivec2 m = max(s1 - s0 + 1, ivec2(0));
-            if (m.x * m.y <= extra) break;
+            if (m.x * m.y * part_iterations(f) <= extra) break;
         }
         if (any(lessThan(s1, s0))) k = 0;       // no parts found: keep the micro-occluder whole
         if (k > 0) {
             int f = l - k;
             int nx = s1.x - s0.x + 1, parts = nx * (s1.y - s0.y + 1);
-            extra -= parts;
+            extra -= parts * part_iterations(f);
             count += float(parts);
             for (int q = 0; q < parts; ++q) {
                 ivec2 jq = s0 + ivec2(q % nx, q / nx);
