@@ -352,9 +352,8 @@ def _mae(cycles_scenes, name, **options):
 def test_finer_near_field_split_stays_within_the_loop_limit():
     """bp_split 0.1 splits coarse microrects next to the tilted floor's contact into many parts of level 1
     and above, each with its own refit loops. Its cap once counted parts, not loop iterations, and with two
-    blended gathers a dispatch ran past llvmpipe's loop limit: light streaks, mae_shadow 0.041 against the
-    default 0.3's 0.023 (128², Cycles 1024 spp). Counted in iterations: 0.017, better than 0.3, as a finer
-    split should be."""
+    blended gathers a dispatch ran past llvmpipe's loop limit: light streaks, mae_shadow 0.041 against 0.3's
+    0.023 (128², Cycles 1024 spp). Counted in iterations: 0.017, better than 0.3, as a finer split should be."""
     bpy = pytest.importorskip("bpy")
     from penumbra.engine.blender.extract import extract
     from penumbra.engine.measure import metrics, reference, scenes

@@ -160,7 +160,7 @@ def test_near_field_split_removes_the_coarse_levels_contact_error():
     over much of the light, and its approximation (one depth, one box for 2^ℓ × 2^ℓ texels) becomes the
     penumbra's error; split into its finer parts while it is that wide, it darkens as its texels do. Budget 4
     on a 256² map (the levels b = 16 takes on a 1024² map), microrects, mean |error| against level 0 (b = ∞)
-    over shadowed pixels: split off 0.048, bp_split 0.3 (the default) 0.030, 0.15 0.017 (measured with the MEAN
+    over shadowed pixels: split off 0.048, bp_split 0.3 0.030, 0.15 0.017 (measured with the MEAN
     refit). One depth layer, the layer the split works on: with the default second layer the coarse levels err
     more against level 0 (PLANE refit: 0.039 → 0.048 split off, 0.012 → 0.023 at 0.15), since a peeled layer's
     partly covering coarse micro-occluders are left out while level 0 keeps its texels."""
