@@ -181,18 +181,24 @@ def gather_cells_bound(map_size, layers: int, quad_extra: int, budget_mode: int,
 REFIT_PARTS = {PRIMITIVE_MICRORECT: REFIT_PARTS_MICRORECT, PRIMITIVE_MICROPATCH: REFIT_PARTS_MICROPATCH}
 
 
+def refit_iterations(defines: dict) -> int:
+    """Loop iterations the coarse refit costs one coarse micro-occluder: its loop over the finer parts and
+    (REFIT_PLANE) backproject_tilted's over the corners. visibility.comp gets it as REFIT_ITERATIONS, for the
+    split's parts (part_iterations)."""
+    if defines["REFIT"] == REFIT_NONE:
+        return 0
+    return REFIT_PARTS.get(defines["PRIMITIVE"], 0) + (REFIT_CORNERS if defines["REFIT"] == REFIT_PLANE else 0)
+
+
 def cell_iterations(defines: dict, coarse: bool) -> int:
     """Loop iterations one micro-occluder may cost a gather, all of which llvmpipe's limit counts (CHUNK_CELLS):
     its own; the near-field split's two loops, which run for every micro-occluder even where they split
     nothing (with b = ∞ the split's mere presence changed the visibility); and where levels above 0 can be
-    gathered (`coarse`), the coarse refit's loops over its parts and (REFIT_PLANE) its corners. Counting the cells and the split alone let a
+    gathered (`coarse`), the coarse refit's (refit_iterations). Counting the cells and the split alone let a
     forced level 1 run past the limit: the refit found no part, every coarse microrect was dropped and the
     umbra leaked (tilted at 128², level 1: mae_shadow 0.17, 0.0066 counted). Unrolling the refit instead
     made every frame slower on llvmpipe (tilted 1.6 → 2.9 s) than the extra dispatches (1.6 → 1.7 s)."""
-    n = 1 + (2 if defines["SPLIT"] else 0)
-    if coarse and defines["REFIT"] != REFIT_NONE:
-        n += REFIT_PARTS.get(defines["PRIMITIVE"], 0) + (REFIT_CORNERS if defines["REFIT"] == REFIT_PLANE else 0)
-    return n
+    return 1 + (2 if defines["SPLIT"] else 0) + (refit_iterations(defines) if coarse else 0)
 
 
 def budget_max_of(o) -> float:
@@ -421,6 +427,7 @@ class Backprojection(Technique):
                    "REFIT": REFIT_NONE if primitive == PRIMITIVE_MICROQUAD else REFIT[o["bp_coarse_fit"]],
                    "COVERAGE": int(self._coverage(o)),
                    "SPLIT": int(self._split(o) > 0.0)}
+        defines["REFIT_ITERATIONS"] = refit_iterations(defines)
         if defines["SPLIT"]:
             uniforms["u_split"], uniforms["u_split_extra"] = self._split(o), SPLIT_EXTRA
         frame.progress.check()

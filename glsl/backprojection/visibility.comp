@@ -64,6 +64,9 @@
 #ifndef SPLIT
 #define SPLIT 0                 // 1: coarse micro-occluders that backproject large are split (see gather_range)
 #endif
+#ifndef REFIT_ITERATIONS
+#define REFIT_ITERATIONS 0      // loop iterations the coarse refit costs a micro-occluder (see part_iterations)
+#endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
 #endif
@@ -900,13 +903,12 @@ Occlusion no_occlusion() {
 
 #if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
 // Loop iterations one split part of level f costs, which u_split_extra counts (llvmpipe's loop limit,
-// engine/gpu/loops.py): its own, and when f > 0 the coarse refit's loop over its parts and the tilted refit's
-// over its corners (backproject_tilted). A cap on parts alone let parts of level 1 and above take a split
-// gather past the limit: bp_split 0.1 on tilted at 128² came out in light streaks (mae_shadow 0.041, 0.017
-// counted).
+// engine/gpu/loops.py): its own, and when f > 0 the coarse refit's (REFIT_ITERATIONS, from
+// techniques/backprojection.py refit_iterations). A cap on parts alone let parts of level 1 and above take a
+// split gather past the limit: bp_split 0.1 on tilted at 128² came out in light streaks (mae_shadow 0.041,
+// 0.017 counted).
 int part_iterations(int f) {
-    if (REFIT == REFIT_NONE || f == 0) return 1;
-    return 1 + REFIT_PARTS + (REFIT == REFIT_PLANE ? REFIT_CORNERS : 0);
+    return f == 0 ? 1 : 1 + REFIT_ITERATIONS;
 }
 #endif
 
