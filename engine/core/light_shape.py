@@ -84,14 +84,27 @@ def weighted_sun_half(light: Light, half) -> tuple:
     return tuple(min(float(x), SUN_KERNEL_TAN) if light.kind == SUN else float(x) for x in half)
 
 
+def is_round(light: Light) -> bool:
+    """Whether the light's shape is round (a disk or ellipse area light, a sphere, a sun's disk of directions)
+    rather than a rectangle."""
+    return light.kind != AREA or light.shape in (DISK, ELLIPSE)
+
+
+def round_in_view(light: Light, face=None) -> bool:
+    """Whether a view's light plane holds the light's round shape itself: a disk or ellipse area light or a
+    sun's disk of directions, in the light's own view (`face` None). A cube face sees a disk light slanted, a
+    sun's rim view is centred on the rim, and a sphere light's disk (Cycles') faces each receiver, so its rays
+    cross the light plane in an ellipse stretched by 1/cosθ off the axis: those keep rectangular stand-ins."""
+    return is_round(light) and light.kind in (AREA, SUN) and face is None
+
+
 def light_shape_uniforms(light: Light, view) -> dict:
     """Half extent of the light in the view's frame (metres, or tan(angle/2) for the sun), whether it
     is round (disk, ellipse, sphere, sun) or rectangular, whether it is a one-sided planar emitter and
     its emission axis in the view's frame, and whether it is a sphere (a point or spot light with a radius,
     whose footprint on the light plane depends on the receiver: light_view.glsl light_footprint): what
     filter kernels, samplers and their weights need."""
-    round_ = light.kind != AREA or light.shape in (DISK, ELLIPSE)
     emit = np.asarray(view.view, float)[:3, :3] @ np.asarray(light.direction, float)
-    return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(round_),
+    return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(is_round(light)),
             "u_light_one_sided": int(light.kind == AREA), "u_light_emit": tuple(float(x) for x in emit),
             "u_light_sphere": int(light.kind in (POINT, SPOT) and light.radius > 0.0)}

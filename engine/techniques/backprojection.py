@@ -40,13 +40,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import importance
-from ..core.light_shape import weighted_sun_half
+from ..core.light_shape import is_round, weighted_sun_half
 from ..core.shader_constants import (BUDGET_BORDER, BUDGET_IMPORTANCE, BUDGET_UNBOUNDED, BUDGET_UNIFORM,
                                      CLASS_BACKPROJECTED, CLASS_LIT, CLASS_UMBRA, LOQ_BLEND, LOQ_INTEGER, LOQ_WRITE,
                                      PRIMITIVE_MICROPATCH, PRIMITIVE_MICROQUAD, PRIMITIVE_MICRORECT, REFINE_HSM,
                                      REFINE_MSSM, REFINE_NONE, REFINE_YSM, REFIT_DEPTH, REFIT_EXTENT, REFIT_MEAN, REFIT_PLANE,
                                      REFIT_CORNERS, REFIT_NONE, REFIT_PARTS_MICROPATCH, REFIT_PARTS_MICRORECT)
-from ..core.snapshot import AREA, DISK, ELLIPSE, SUN
 from ..gpu import loops
 from ..structures import need
 from ..structures.coverage import COVERAGE
@@ -118,10 +117,6 @@ def sample_positions(accumulation: str) -> np.ndarray:
     x = (k + np.array(jx)[l_ & 1]) / n
     y = (l_ + np.array(jy)[k & 1]) / n
     return np.stack(np.broadcast_arrays(x, y), axis=-1)
-
-
-def is_round(light) -> bool:
-    return light.kind != AREA or light.shape in (DISK, ELLIPSE)
 
 
 def valid_mask(accumulation: str, round_: bool) -> np.ndarray:

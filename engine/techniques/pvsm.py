@@ -39,13 +39,13 @@ import numpy as np
 from dataclasses import replace
 
 from ..core import lightview
-from ..core.light_shape import weighted_sun_half
+from ..core.light_shape import is_round, weighted_sun_half
 from ..core.matrices import mat_uniform
 from ..core.shader_constants import PVSM_SEARCH_CELLS
 from .. import structures
 from ..gpu import loops
 from ..structures.conservative_map import CONSERVATIVE_MAP
-from .backprojection import is_round, level_count
+from .backprojection import level_count
 from .base import DEPTH_MAP, Option, Technique, light_shape_uniforms
 
 REDUCE_STEP = 16                # block side of one reduction pass (engine/gpu/loops.py: the loop limit)

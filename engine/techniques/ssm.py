@@ -42,8 +42,9 @@ Accumulation precision (appendix A): float32 blending (default); half-float blen
 contributions of micro-patches hiding less than ~2^-11 of the light once the sum grows (large maps); and
 half-float with the paper's workaround: ⌊√M⌋ batches summed separately and then added together.
 
-Lights: rectangle and square exactly; disk, ellipse, sphere (point/spot radius) and sun (disk of
-directions) through their bounding rectangle (square).
+Lights: rectangle and square exactly; disk, ellipse and sun (disk of directions) exactly in their own view, each
+patch's rectangle of the light clipped to the round shape (glsl/ssm/patch.glsl light_share, ours); sphere lights
+(point/spot radius) and round lights seen from a cube face or a sun's rim view through their bounding rectangle.
 
 Steps 1–3 are per-light structures (engine/structures/ssm_maps.py: maps, patch list and the receiver mask;
 soft_shadow_map.py: the scatter), declared by `needs_for` with the options' parameters; this module projects.
@@ -71,7 +72,7 @@ class SoftShadowMaps(Technique):
     label = "Soft Shadow Maps"
     description = ("Atty et al. 2006: occluder-map texels scattered as micro-patches onto a soft shadow map. "
                    "Casters shadow receivers (Object → Penumbra → Shadow Role), an object itself too; "
-                   "disk, ellipse, sphere and sun lights use their bounding rectangle")
+                   "sphere lights use their bounding square")
     rim_views = True
     needs = (SSM_MAPS, SOFT_SHADOW_MAP, RECEIVER_MASK)    # with parameters from the options: needs_for
     options = (

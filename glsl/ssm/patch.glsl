@@ -16,16 +16,34 @@
 // light_view.glsl: the SSM view's window and size (u_light_window, u_map_size), the receiver rule
 #include "common/light_view.glsl"
 #include "common/polygon.glsl"
+#include "common/disk.glsl"
 #ifndef SSM_HORIZON_CUT
 #define SSM_HORIZON_CUT 0               // 1: some receiver's horizon cuts the light (see weighted_fraction)
 #endif
 #ifndef SSM_WEIGHTED
 #define SSM_WEIGHTED 0                  // 1: occlusion weighted by irradiance (see weighted_fraction)
 #endif
-uniform vec2 u_half;                // light half extent (bounding rectangle for round lights)
+#ifndef SSM_ROUND
+#define SSM_ROUND 0                     // 1: a round light (see light_share)
+#endif
+#define ROUND_WEIGHT_SPAN 0.5           // weighted_fraction clips to a round light up to this half extent / zr
+uniform vec2 u_half;                // light half extent (of the bounding rectangle, for round lights)
 uniform int u_ortho;
 uniform float u_bias_texels;        // relative depth gap: a patch occludes only if zo < zr·(1 − u_bias_texels)
 uniform int u_receiver_normal;      // 1: weights take the receiver's normal (a planar emitter; weighted_fraction)
+
+// The share of the light that the overlap `ab` (normalised light coordinates [0, 1]², possibly with swapped
+// sides: signed, for facets) covers. A round light (SSM_ROUND: a disk or ellipse area light, a sun in its own
+// view) is the ellipse inscribed in its rectangle, which is the unit disk once [0, 1]² is mapped to [-1, 1]².
+// Ours: the paper treats lights as rectangles, whose corners hold 21 % of the area, so a sliver across the
+// middle of the light hid only π/4 of its share of the disk: a thin caster's penumbra came out too light.
+float light_share(vec4 ab) {
+#if SSM_ROUND
+    return disk_share(ab * 2.0 - 1.0);
+#else
+    return (ab.z - ab.x) * (ab.w - ab.y);
+#endif
+}
 
 bool depth_valid(float z) {
     return z > 0.0 && z < EMPTY_DEPTH;
@@ -149,7 +167,7 @@ float weighted_fraction(vec4 ab, vec2 t, float zr, vec3 n) {
     // sign (fuzz 1104, a 2.4 mm sphere light on the walls of a room around it: that noise clamped at 0 left the
     // walls unshadowed, 0.001; let through once facets allowed negative shares, 0.056; the plain share 0.043,
     // what the uniform weighting gives).
-    if (max(h.x, h.y) < 0.05 * zr) return (ab.z - ab.x) * (ab.w - ab.y);
+    if (max(h.x, h.y) < 0.05 * zr) return light_share(ab);
     vec4 rect = (ab - 0.5) * 2.0 * h.xyxy / zr - t.xyxy;      // overlap, relative to the foot, in units of zr
     vec4 light = vec4(-h, h) / zr - t.xyxy;
     bool above = rect_above(light, n);
@@ -168,7 +186,17 @@ float weighted_fraction(vec4 ab, vec2 t, float zr, vec3 n) {
         total = tilted ? tilted_rect(light, n) : ff_rect(light);
         part = tilted ? tilted_rect(rect, n) : ff_rect(rect);
     }
-    return total > 0.0 ? clamp(part / total, -1.0, 1.0) : (ab.z - ab.x) * (ab.w - ab.y);   // signed: facets
+    // A round light: the weights over the rectangle scaled by the share of its area inside the light's disk,
+    // which stands in for the share of its weight there (the exact clipped form factor costs a polygon per
+    // patch) where the weights vary little over the light: up to a half extent of ROUND_WEIGHT_SPAN·zr, over
+    // which a facing receiver's weight falls to 0.64. A wider light keeps its rectangle here: over a 2-3 rad
+    // sun the weight sits near the axis and the area share overweighs central patches by up to 4/π (fuzz
+    // 14026: 0.012 with the rectangle, 0.021 clipped).
+    bool clip = SSM_ROUND == 1 && max(h.x, h.y) <= ROUND_WEIGHT_SPAN * zr;
+    float area = (ab.z - ab.x) * (ab.w - ab.y), plain = clip ? light_share(ab) : area;
+    if (!(total > 0.0)) return plain;
+    if (clip) part *= plain / area;
+    return clamp(part / total, -1.0, 1.0);      // signed: facets
 }
 #endif
 
@@ -185,7 +213,7 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
 #if SSM_WEIGHTED
     if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr, n);
 #endif
-    return w.x * w.y;
+    return light_share(ab);
 }
 
 #ifndef SSM_FACETS
@@ -231,7 +259,7 @@ float facet_occlusion(vec4 d, vec4 edges, float zo, float zr, vec2 inv_2h, vec2 
 #if SSM_WEIGHTED
     if (w.x != 0.0 && w.y != 0.0) return weighted_fraction(ab, t, zr, n);     // ff_rect is odd: signed too
 #endif
-    return w.x * w.y;
+    return light_share(ab);
 }
 
 // Fraction of the light hidden by the patch of texel `patch` at depth zo from a receiver at window
@@ -248,5 +276,5 @@ float patch_occlusion(vec2 patch_texel, float zo, vec2 t, float zr, vec3 n) {
 #if SSM_WEIGHTED
     if (w.x > 0.0 && w.y > 0.0) return weighted_fraction(ab, t, zr, n);
 #endif
-    return w.x * w.y;
+    return light_share(ab);
 }
