@@ -24,6 +24,7 @@
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #include "common/penumbra.glsl"
+#include "common/disk.glsl"
 
 #ifndef BITS
 #define BITS 16                 // 0: area accumulation only; 8, 16, 32: N×N occlusion bitmask
@@ -365,17 +366,9 @@ uint span_row(Span s, int l) {
 }
 #endif
 
-// Fraction of the unit disk covered by the rectangle [a, b] (eight-strip midpoint rule over x, exact in y).
+// Fraction of the unit disk covered by the rectangle [a, b] (exact: common/disk.glsl).
 float disk_fraction(vec2 a, vec2 b) {
-    float x0 = max(a.x, -1.0), x1 = min(b.x, 1.0);
-    if (x1 <= x0 || b.y <= -1.0 || a.y >= 1.0) return 0.0;
-    float w = (x1 - x0) / 8.0, sum = 0.0;
-    for (int i = 0; i < 8; ++i) {
-        float s = x0 + (float(i) + 0.5) * w;
-        float c = sqrt(max(1.0 - s * s, 0.0));
-        sum += max(min(b.y, c) - max(a.y, -c), 0.0);
-    }
-    return sum * w / 3.14159265;
+    return any(greaterThanEqual(a, b)) ? 0.0 : disk_share(vec4(a, b));
 }
 
 // Occluded fraction of the light for the rectangle [a, b] in light coordinates ([−1, 1]² = the light's
