@@ -177,6 +177,15 @@ TWICE_REFERENCE_XFAIL = {
     ("cube", "PCSS"): "the penumbra is wider than pcss_max_radius (0.1 of the map), so the kernels act as a smaller "
                       "light's and the core comes out too dark: 0.089 against REFERENCE's 0.011 (0.016 at a cap of "
                       "0.5, which makes suzanne, contact, tilted and slab worse)",
+    ("slab", "PCSS"): "the ground at the foot of the slab's lit face: seen from the sun almost edge-on, the face fills "
+                      "the filter there with texels nearer than the ground's plane, which the one-depth filter counts "
+                      "as blocking rays that pass in front of the face, so the contact line comes out dark: 0.087 "
+                      "against REFERENCE's 0.013",
+    ("slab", "SSM"): "the outer penumbra falls outside the light's map and is taken as lit: a sun's view is fitted with "
+                     "no room for its disk of directions (lightview.fit). 0.028 against REFERENCE's 0.013; with the "
+                     "window widened by each lit point's reach 0.015, but on random scenes with suns the coarser "
+                     "maps cost more than the tail gains (fuzz 15012 0.071 -> 0.092, 15031 0.019 -> 0.033, and "
+                     "every soft technique worse summed over seven such seeds), so it did not land",
     ("tilted", "PCSS"): "one mean blocker depth: over a ball the blockers found are its top while its silhouette is "
                         "its equator, so the penumbra is sized for the wrong depth: 0.038 against 0.014",
 }
@@ -190,7 +199,7 @@ def class_scenes():
 @pytest.mark.parametrize("name,technique", [
     pytest.param(n, t, marks=[pytest.mark.xfail(strict=True, reason=TWICE_REFERENCE_XFAIL[(n, t)])]
                  if (n, t) in TWICE_REFERENCE_XFAIL else [])
-    for n in ("grazing", "cube", "tilted") for t in ("PCSS", "SSM", "BACKPROJECTION")])
+    for n in ("grazing", "cube", "tilted", "slab") for t in ("PCSS", "SSM", "BACKPROJECTION")])
 def test_soft_techniques_within_twice_reference_on_grazing_and_tilted_scenes(class_scenes, name, technique):
     """PCSS with an even vote over its taps → irradiance-weighted taps, 128² against Cycles 1024 spp (bench):
     grazing 0.050 → 0.030, cube 0.097 → 0.089, tilted 0.041 → 0.035. SSM's flat micro-patches → sloped facets
