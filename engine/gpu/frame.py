@@ -348,10 +348,13 @@ class Frame:
             return None
         return frozenset(int(i) for i in np.flatnonzero(~outside & ~empty))
 
-    def render_depth_map(self, view: LightView, target=None):
-        """Linear light depth of the casters seen from `view`, as an R32F texture (NO_OCCLUDER where empty).
+    def render_depth_map(self, view: LightView, target=None, back_faces: bool = False):
+        """Linear light depth of the casters seen from `view`, as an R32F texture (NO_OCCLUDER where empty);
+        `back_faces`: of their faces turned away from the view's eye only, into a target of its own.
         Render targets are reused between calls of the same size (REFERENCE renders hundreds)."""
         size = (view.width, view.height)
+        if back_faces and target is None:
+            target = self.target(size, 1)
         if target is None:
             target = self._depth_targets.get(size)
             if target is None:
@@ -360,7 +363,8 @@ class Frame:
             target[1].use()
             target[1].clear(NO_OCCLUDER, 0.0, 0.0, 0.0, depth=1.0)
             return target[0]
-        prog = program(self.worker, "common/depth.vert", "common/depth.frag")
+        prog = program(self.worker, "common/depth.vert", "common/depth.frag",
+                       defines={"BACK_FACES": 1} if back_faces else None)
         return self.rasterise(target, prog, view.view, view.view_proj)
 
     def render_depth_layers(self, views, clip_sphere=None):

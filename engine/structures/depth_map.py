@@ -1,13 +1,21 @@
 """The hard depth map of the casters from the light view's eye: linear light depth, R32F, NO_OCCLUDER where
-nothing was drawn. HARD, PCF and PCSS read it; BACKPROJECTION builds its pyramids from it."""
+nothing was drawn. HARD, PCF and PCSS read it; BACKPROJECTION builds its pyramids from it.
+The back-face map: the same of the casters' faces turned away from the light centre only, the near side of a
+solid's far half (second-depth shadow maps, Wang & Molnar 1994). PCSS reads it."""
 from __future__ import annotations
 
 from ..gpu.frame import NO_OCCLUDER  # noqa: F401  (the empty-texel value readers compare against)
 from . import structure
 
 DEPTH_MAP = "depth_map"
+BACK_DEPTH_MAP = "back_depth_map"
 
 
 @structure(DEPTH_MAP)
 def build(frame, lc):
     return frame.render_depth_map(lc.view)
+
+
+@structure(BACK_DEPTH_MAP)
+def build_back(frame, lc):
+    return frame.render_depth_map(lc.view, back_faces=True)
