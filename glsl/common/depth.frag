@@ -9,12 +9,12 @@ uniform vec4 u_clip_sphere;     // centre, r²
 
 #ifdef BACK_FACES
 // The casters' back faces only (seen from the light centre): a solid's far side (structures/depth_map.py).
-uniform int u_mirrored = 0;     // the model flips handedness: front faces wind clockwise
+#include "common/facing.glsl"
 #endif
 
 void main() {
 #ifdef BACK_FACES
-    if (gl_FrontFacing != (u_mirrored == 1)) discard;
+    if (front_facing()) discard;
 #endif
 #ifdef CLIP_SPHERE
     vec3 from_centre = v_position - u_clip_sphere.xyz;

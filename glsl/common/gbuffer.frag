@@ -7,7 +7,7 @@ in float v_depth;
 uniform vec3 u_camera_position;
 uniform int u_camera_ortho;
 uniform vec3 u_camera_forward;
-uniform int u_mirrored = 0;     // the model matrix flips handedness, so front faces wind clockwise
+#include "common/facing.glsl"
 // Base-colour image (engine/gpu/geometry.py AlbedoMap): 0 none; 1 repeat, 2 extend, 3 clip (the sampler wraps
 // or clamps), 4 mirror (folded here: the sampler clamps).
 uniform int u_albedo_map = 0;
@@ -68,7 +68,7 @@ void main() {
     if (dot(ng, to_eye) < 0.0) ng = -ng;
     // Surfaces are two-sided, as in Cycles: seen from the back, the shading normal flips with the face.
     vec3 ns = normalize(v_normal);
-    if (gl_FrontFacing == (u_mirrored == 1)) ns = -ns;
+    if (!front_facing()) ns = -ns;
     g_position = vec4(v_position, 1.0);
     g_normal = vec4(ns, v_depth);
 #ifdef TERMINATOR_LIFT

@@ -3,11 +3,11 @@
 // method's second occluder map).
 in float v_depth;
 uniform int u_back_only = 0;    // 1: keep only back faces (seen from the light centre)
-uniform int u_mirrored = 0;     // the model flips handedness: front faces wind clockwise
+#include "common/facing.glsl"
 uniform float u_object = -1.0;  // object index (exact in a float up to 2^24)
 layout(location = 0) out vec2 f_depth;
 
 void main() {
-    if (u_back_only == 1 && gl_FrontFacing != (u_mirrored == 1)) discard;
+    if (u_back_only == 1 && front_facing()) discard;
     f_depth = vec2(v_depth, u_object);
 }
