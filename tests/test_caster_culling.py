@@ -163,3 +163,37 @@ def test_a_convex_caster_shadows_a_point_off_it_unless_a_face_plane_parts_them_f
     # where the shadow ray leaves from counts too: a lifted point behind every plane facing the light
     lifted = np.array([[0.4, 0.0, 0.9]])
     assert not lightview.faces_clear_light(above, normals, offsets, floor_point, lifted, None, 1e-5)
+
+
+def _dented_box(lo, hi, dent):
+    """A closed box whose roof is pushed in to a point `dent` below its centre: closed, not convex."""
+    box = stress.box(lo, hi)
+    walls = box[~np.all(np.isclose(box[:, :, 2], hi[2]), axis=1)]
+    (x0, y0, _), (x1, y1, z1) = lo, hi
+    apex = ((x0 + x1) / 2.0, (y0 + y1) / 2.0, z1 - dent)
+    rim = [(x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
+    roof = [(rim[k], rim[(k + 1) % 4], apex) for k in range(4)]          # counter-clockwise seen from above
+    return np.concatenate([walls, np.array(roof, float)])
+
+
+def test_a_closed_shell_that_is_not_convex_hides_every_light_outside_it():
+    """lightview.enclosing_shell beyond convex casters (fuzz: a huge torus or dented solid around the camera):
+    the side of a ball around the near plane and one around the light, by a ray's crossings of the closed
+    surface. Not for a light inside, a light whose emitter reaches through the surface, or a camera outside."""
+    from penumbra.engine.core import solids
+    from penumbra.engine.core.snapshot import SUN, Light
+    room = _dented_box((-3, -3, 0), (3, 3, 3), dent=1.5)
+    sun = Light("Sun", SUN, stress.look_at((4.0, 2.0, 9.0), (0.0, 0.0, 0.0)), np.ones(3), 3.0, angle=3.0)
+    inside, outside = stress.camera(eye=(1.5, -1.5, 1.0), target=(0, 0, 0.5), fov=70.0), stress.camera()
+    snap = stress.assemble([("Room", room, True, True)], [sun], inside, "dented")
+    assert snap.is_closed(0) and 0 not in snap.convex_objects()
+    assert lightview.enclosing_shell(snap, sun, [0]) == 0
+    assert lightview.enclosing_shell(snap, stress.area_light((0.0, 0.0, 2.8), size=0.4), [0]) == 0    # in the dent
+    assert lightview.enclosing_shell(snap, stress.area_light((2.0, 0.0, 1.0), size=0.4), [0]) is None  # in the room
+    assert lightview.enclosing_shell(snap, stress.area_light((0.0, 0.0, 1.6), size=0.4), [0]) is None  # through the roof
+    assert lightview.enclosing_shell(stress.assemble([("Room", room, True, True)], [sun], outside, "out"),
+                                     sun, [0]) is None
+    # the crossing count itself: a ray from inside leaves once, one from the dent's hollow crosses the roof twice
+    assert solids.ball_inside(room, (1.0, -1.0, 1.0), 0.5) is True
+    assert solids.ball_inside(room, (0.0, 0.2, 2.9), 0.05) is False
+    assert solids.ball_inside(room, (0.0, 0.0, 1.5), 0.1) is None                      # on the dent's tip

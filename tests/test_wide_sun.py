@@ -27,10 +27,14 @@ def _room_under_wide_sun():
 
 
 @pytest.mark.parametrize("technique", CENTRE_HIDDEN)
-def test_wide_sun_shadows_receivers_facing_away_from_its_centre(technique):
+def test_wide_sun_shadows_receivers_facing_away_from_its_centre(technique, monkeypatch):
     """The centre's map holds nothing on the rays from a receiver facing away from the sun's centre to the part
     of the disk above its horizon; such receivers were left lit (V = 1 over half the room: mae_shadow HARD 0.585,
-    PCF 0.590, SPSM 0.586, PCSS 0.583 against bounds of 0.15-0.24; with rim views 0.007-0.015)."""
+    PCF 0.590, SPSM 0.586, PCSS 0.583 against bounds of 0.15-0.24; with rim views 0.007-0.015). The pipeline
+    now leaves a sun outside a closed room around the camera unlit without any view (lightview.enclosing_shell,
+    tests/test_enclosed_shell.py); that decision is turned off here, so the rim views still answer for it."""
+    from penumbra.engine.core import lightview
+    monkeypatch.setattr(lightview, "enclosing_shell", lambda *args, **kwargs: None)
     m, bound = fuzz.shadow_score(_room_under_wide_sun(), technique)
     print(technique, m["mae_shadow"], bound, m["n_shadow"])
     assert m["n_shadow"] > 2000

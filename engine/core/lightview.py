@@ -14,6 +14,7 @@ import numpy as np
 
 from .snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Light
 from .light_shape import penumbra_spread, spot_cone_tans
+from . import solids
 from .shading import SUN_MAX_HALF
 from .matrices import mat_uniform
 
@@ -713,10 +714,12 @@ def _in_front_of_any(points: np.ndarray, normals: np.ndarray, offsets: np.ndarra
 
 
 def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int | None:
-    """A closed convex caster among `casters` (object indices) that holds the camera's whole near plane
-    while `light` lies wholly outside it, or None. Then every point the camera sees lies inside it or on its
+    """A closed caster among `casters` (object indices) that holds the camera's whole near plane while
+    `light` lies wholly outside it, or None. Then every point the camera sees lies inside it or on its
     inner surface, and every path from there to any point of the light crosses it: the light reaches none of
-    the visible receivers (a room or a huge ball around the camera, lit from outside)."""
+    the visible receivers (a room or a huge ball around the camera, lit from outside). A convex caster of
+    up to `max_faces` faces is decided by its face planes; any other closed caster by the side of a ball
+    around the near plane and one around the light (solids.ball_inside)."""
     cam = snap.camera
     ndc = np.array([[x, y, -1.0, 1.0] for x in (-1.0, 1.0) for y in (-1.0, 1.0)])
     near = ndc @ np.linalg.inv(np.asarray(cam.projection, float) @ np.asarray(cam.view, float)).T
@@ -725,14 +728,33 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
         return None
     wanted = set(int(i) for i in casters)
     bounds = snap.object_bounds()
-    for index, (normals, offsets) in snap.convex_objects(max_faces, around=near, bounds=bounds).items():
+    convex = snap.convex_objects(max_faces, around=near, bounds=bounds)
+    for index, (normals, offsets) in convex.items():
         if index not in wanted:
             continue
         scale = max(float(np.abs(bounds[index]).max()), 1.0)
         inside = float((near @ normals.T - offsets).max()) < -1e-4 * scale     # strictly: not on its surface
         if inside and _light_outside(light, normals, offsets) and snap.is_closed(index):
             return index
+    centre = near.mean(axis=0)
+    radius = float(np.linalg.norm(near - centre, axis=1).max())
+    holding = np.all((near[None] >= bounds[:, None, 0]) & (near[None] <= bounds[:, None, 1]), axis=(1, 2))
+    for index in np.flatnonzero(holding):
+        if int(index) not in wanted or int(index) in convex or not snap.is_closed(int(index)):
+            continue
+        triangles = snap.drawn_triangles(int(index))
+        if solids.ball_inside(triangles, centre, radius) is not True:
+            continue
+        if light.kind == SUN or solids.ball_inside(triangles, light.position, _light_radius(light)) is False:
+            return int(index)
     return None
+
+
+def _light_radius(light: Light) -> float:
+    """The radius of a ball around the light's centre that holds all of its emitter."""
+    if light.kind == AREA:
+        return 0.5 * float(np.hypot(light.size_x, light.size_y))
+    return float(light.radius)
 
 
 def _light_in_front(light: Light, normals: np.ndarray, offsets: np.ndarray) -> tuple:

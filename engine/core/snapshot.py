@@ -211,6 +211,10 @@ class SceneSnapshot:
         valid = np.isfinite(area) & (area > 0.0)
         return p[valid], normal[valid], area[valid], ids[valid]
 
+    def drawn_triangles(self, index: int) -> np.ndarray:
+        """Object `index`'s triangles that draw something, (T, 3, 3) float64 world corners."""
+        return self._drawn_triangles(self.object_id == index)[0]
+
     def flat_objects(self, limit: int = 16, include=None) -> dict:
         """Objects whose triangles all lie in one plane (a floor at any tilt, a flattened object), the
         `limit` largest, or those of `include` (object indices): index → (unit normal, offset) of the plane
@@ -306,8 +310,11 @@ class SceneSnapshot:
         """Whether object `index`'s drawn triangles close up into a watertight surface: every edge shared by
         exactly two of them, corners matched to 1e-6 of the object's extent. Only then does every path from
         its inside to its outside cross it (convex_objects alone admits an open dome)."""
-        p = self._drawn_triangles(self.object_id == index)[0]
+        if index in self._closed:
+            return self._closed[index]
+        p = self.drawn_triangles(index)
         if len(p) < 4:
+            self._closed[index] = False
             return False
         lo, hi = p.reshape(-1, 3).min(axis=0), p.reshape(-1, 3).max(axis=0)
         step = 1e-6 * max(float(np.abs(hi - lo).max()), 1e-30)
@@ -317,7 +324,13 @@ class SceneSnapshot:
         edges = np.sort(np.stack([vertex[:, [0, 1]], vertex[:, [1, 2]], vertex[:, [2, 0]]], axis=1).reshape(-1, 2),
                         axis=1)
         _, counts = np.unique(edges, axis=0, return_counts=True)
-        return bool(np.all(counts == 2))
+        self._closed[index] = closed = bool(np.all(counts == 2))
+        return closed
+
+    @cached_property
+    def _closed(self) -> dict:
+        """is_closed's answers, once per object and snapshot (every light of every frame asks)."""
+        return {}
 
     def terminator_offset(self) -> tuple[float, str | None]:
         """The Shadow Terminator Geometry Offset the visible objects share (Cycles' default 0.1 when there are

@@ -87,6 +87,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     sums = frame.texture(size, 2)       # all four zero-filled (Frame.texture)
     irradiance, visibility = frame.texture(size, 4), frame.texture(size, 1)
     ones = np.ones((frame.height, frame.width), np.float32).tobytes()
+    zeros = bytes(len(ones))
 
     with t.stage("readback"):
         position = frame.read(frame.gbuffer["g_position"])
@@ -100,6 +101,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
     covered = position[..., 3] > 0.0
     bounds_buffer = frame.buffer(_BOUNDS_RESET)
     caster_objects = np.array([o.caster for o in snap.objects], bool)
+    caster_indices = np.flatnonzero(caster_objects)
     object_bounds = frame.geometry.object_bounds()
     has_casters = frame.geometry.has_casters
     # Where the visible pixels lie against flat and convex casters, once per frame (lightview.receiver_sides)
@@ -107,7 +109,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         snap.lights, frame.geometry.flat_objects(), frame.geometry.convex_objects(), position[..., :3], covered)
     sheet_light = _sheet_light(frame, frame.geometry.coincident_sheets(), position, covered)
     debug: dict = {}
-    stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0,
+    stats = {"lights": len(snap.lights), "lights_skipped": 0, "lights_unshadowed": 0, "lights_enclosed": 0,
              "covered_pixels": int(covered.sum()), "technique": technique.identifier}
     if not snap.lights:
         frame.warn(f"Scene '{snap.name}' has no lights: Combined is black and Visibility is 1.")
@@ -130,11 +132,20 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         if receivers is None:
             stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
             continue
-        casters = None
+        casters = shell = None
         if light.casts_shadow and has_casters:
-            casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, sides)
+            # A closed caster around everything the camera sees, with the light outside it: every path from a
+            # visible receiver to the light crosses it, so nothing is lit, whatever the light's size. Decided
+            # here for every technique: from inside, a wide light's rays leave through the shell's half
+            # turned away from the light, which a map from the light holds in no single layer.
+            shell = lightview.enclosing_shell(snap, light, caster_indices)
+            if shell is None:
+                casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, sides)
         rgb = None
-        if casters is None:
+        if shell is not None:
+            visibility.write(zeros)             # walled off from every visible receiver
+            stats["lights_enclosed"] += 1
+        elif casters is None:
             visibility.write(ones)              # nothing can shadow what this light reaches
             stats["lights_unshadowed"] += 1
         else:

@@ -297,7 +297,6 @@ class SsmMaps:
     patches: list = field(default_factory=list)     # per occluder map: its PatchList
     bias: float = DEPTH_EPSILON
     skipped: bool = False
-    enclosed: bool = False                   # skipped because a closed shell hides the light from every pixel
     facets: bool = False                     # sloped facets: the extents reach their edges (facet_reach)
     horizon_cut: bool = False                # some receiver's horizon cuts the light (glsl/ssm/receivers.comp)
 
@@ -377,15 +376,6 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
     if not casters or not receivers:
         frame.count(ssm_lights_skipped=1)
         return SsmMaps(casters, receivers, half, skipped=True)
-    # The camera inside a closed convex caster that the light lies outside (a room, a huge ball around the
-    # scene, lit by a sun): nothing visible is lit. SSM's one occluder map from the light's centre holds only
-    # the shell's half turned to the light, while the rays of a wide light from the inside leave under that
-    # half's silhouette, through the half only the back-face map holds, and §3.5 merges the two maps by
-    # maximum, not by union: on fuzz 8107 (a sun 3 rad wide) 74 % of the irradiance left that way and SSM
-    # let 77 % through. The shell decides that exactly, for any light size.
-    if lightview.enclosing_shell(frame.snap, light, casters) is not None:
-        frame.count(ssm_lights_enclosed=1)
-        return SsmMaps(casters, receivers, half, skipped=True, enclosed=True)
     caster_box = (bounds[casters, 0].min(axis=0), bounds[casters, 1].max(axis=0))
     if not casters_reach_receivers(light, lc.view.view, half, lc.view.is_ortho, caster_box, lc.receivers):
         frame.count(ssm_lights_skipped=1)   # the casters' penumbrae fall nowhere near a visible receiver

@@ -33,10 +33,10 @@ inside it) is no receiver, so it cannot stand in for the receivers behind it; th
 also bounds the penumbra extents (§3.3), so hidden surfaces cost no scatter work. A flat, axis-aligned
 caster that every visible receiver lies on the light side of (a ground plane) cannot shadow anything and is
 left out of the occluder maps (lightview.shadowing_caster_bounds). Pixels of camera-visible objects that are
-not receivers (CASTER role) get V = 1. With the camera inside a closed convex caster and the light wholly
-outside it (lightview.enclosing_shell) no map is drawn and every receiver gets V = 0: from inside, a wide
-light's rays leave the shell mostly through its half turned away from the light, which the front map lacks
-and the back map's maximum merge (§3.5) cannot add.
+not receivers (CASTER role) get V = 1. A light walled off by a closed shell around the camera gets no views at
+all (render/pipeline.py, lightview.enclosing_shell): from inside, a wide light's rays leave the shell mostly
+through its half turned away from the light, which the front map lacks and the back map's maximum merge
+(§3.5) cannot add.
 
 Accumulation precision (appendix A): float32 blending (default); half-float blending, which loses the
 contributions of micro-patches hiding less than ~2^-11 of the light once the sum grows (large maps); and
@@ -123,11 +123,7 @@ class SoftShadowMaps(Technique):
         s = frame.settings
         maps, soft = lc.structures[SSM_MAPS], lc.structures[SOFT_SHADOW_MAP]
         if soft is None:            # no caster can shadow a visible receiver (the maps say why)
-            v = np.ones((frame.height, frame.width), np.float32)
-            if maps.enclosed:       # or a closed shell around the camera hides the light from every receiver
-                mask = lc.structures[RECEIVER_MASK]
-                v = np.zeros_like(v) if mask is None else np.where(frame.read(mask)[..., 1] > 0.5, 0.0, 1.0)
-            out.write(v.astype(np.float32).tobytes())
+            out.write(np.ones((frame.height, frame.width), np.float32).tobytes())
             return
         front, back, mask = soft.front, soft.back, lc.structures[RECEIVER_MASK]
         debug = frame.texture((frame.width, frame.height), 1) if s.debug_passes else out
