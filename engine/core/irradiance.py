@@ -211,6 +211,24 @@ def _disk_cell_centres(centre, radius, axis, x, rings: int, sectors: int) -> np.
     return centre[:, None, :] + u[..., None] * t[:, None, :] + v[..., None] * b[:, None, :]
 
 
+def _spot_disk_mean(light: Light, centre, radius, axis, x, n, rings: int, sectors: int) -> tuple:
+    """The spot's attenuation averaged over the disk's equal-solid-angle cells, weighted by the receiver's
+    cosine, (N,); and whether the cells or as many points on the disk's rim disagree, (N,) bool."""
+    cells = _disk_cell_centres(centre, radius, axis, x, rings, sectors)     # (N, C, 3)
+    t, b = _disk_frame(axis)
+    phi = 2.0 * np.pi * (np.arange(sectors) + 0.5) / sectors
+    rim = centre[:, None, :] + radius[:, None, None] * (np.cos(phi)[None, :, None] * t[:, None, :]
+                                                        + np.sin(phi)[None, :, None] * b[:, None, :])
+    q = np.concatenate([cells, rim], axis=1) - x[:, None, :]
+    q2 = np.maximum(np.sum(q * q, axis=-1), _EPS)
+    qn = q / np.sqrt(q2)[..., None]
+    att = spot_attenuation(light, -qn.reshape(-1, 3)).reshape(q2.shape)
+    c = cells.shape[1]
+    w = np.maximum(np.einsum("ncj,nj->nc", qn[:, :c], n), 0.0)      # the cells hold equal solid angles
+    mean = np.sum(w * att[:, :c], axis=1) / np.maximum(np.sum(w, axis=1), _EPS)
+    return mean, att.min(axis=1) < att.max(axis=1)
+
+
 def spot_tan_wide(light: Light) -> float:
     """tan of the spot cone's widest half angle in world space: the object scale stretches the cone by
     scale_x/scale_z and scale_y/scale_z (as Cycles' "larger spread"); a sheared spot's from its edge."""
@@ -246,8 +264,10 @@ def spot_edge_tans(light: Light) -> tuple[float, float, float]:
 # Spot lights with a radius: the cone attenuation is evaluated per ray in Cycles, so it is integrated over
 # the emitter: through a SPOT_GRID × SPOT_GRID grid of the cone's footprint on the disk's plane where that
 # footprint's box (clipped to the disk) is smaller than r², otherwise as a mean over SPOT_RINGS × SPOT_SECTORS
-# cells of equal solid angle times the disk's exact form factor.
+# cells of equal solid angle (SPOT_FINE where the cone's edge crosses the disk) times the disk's exact form
+# factor.
 SPOT_RINGS, SPOT_SECTORS = 4, 16
+SPOT_FINE = (12, 24)        # where the cone's edge crosses the disk (_spot_disk_mean's `split`)
 SPOT_GRID = 24
 
 
@@ -368,13 +388,10 @@ def _sphere_light(light: Light, x: np.ndarray, n: np.ndarray, g: np.ndarray) -> 
         # Cycles evaluates the cone per ray (direction from the emitter sample towards x, no cosine),
         # so average the attenuation over equal-area cells of the disk, weighted by each cell's
         # point-approximated form factor cos_x·cos_disk/dist², times the exact disk form factor.
-        cells = _disk_cell_centres(centre, rr, axis, x, SPOT_RINGS, SPOT_SECTORS)  # (N, C, 3)
-        q = cells - x[:, None, :]
-        q2 = np.maximum(np.sum(q * q, axis=-1), _EPS)
-        qn = q / np.sqrt(q2)[..., None]
-        w = np.maximum(np.einsum("ncj,nj->nc", qn, n), 0.0)     # the cells hold equal solid angles
-        att = spot_attenuation(light, -qn.reshape(-1, 3)).reshape(q2.shape)
-        mean_att = np.sum(w * att, axis=1) / np.maximum(np.sum(w, axis=1), _EPS)
+        mean_att, split = _spot_disk_mean(light, centre, rr, axis, x, n, SPOT_RINGS, SPOT_SECTORS)
+        if split.any():     # the cone's edge crosses the disk: finer cells (irradiance.glsl spot_over_disk)
+            mean_att[split] = _spot_disk_mean(light, centre[split], rr[split], axis[split], x[split], n[split],
+                                              *SPOT_FINE)[0]
         ff = np.maximum(polygon_form_factor(_disk_facing(centre, rr, axis) - x[:, None, :], n) - loss, 0.0) * mean_att
         foot = _spot_footprint(light, centre, rr, x, n)
         ff = np.where(np.isnan(foot), ff, foot)

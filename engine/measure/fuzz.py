@@ -457,6 +457,34 @@ class Row:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
+def _unshadowed_check(result, cyc: SceneReference) -> tuple[float, float]:
+    """A render's unshadowed light against Cycles' (compare.unshadowed_terms: its Irradiance pass, so the
+    render needs debug passes) and that error's bound; the error is NaN where no pixel is lit."""
+    from ..render import pipeline
+    from .compare import unshadowed_terms
+    terms = unshadowed_terms(result.passes["Irradiance"] / np.pi, cyc.ref.unshadowed, cyc.ref.mask,
+                             result.passes["Depth"][..., 0], pipeline.BACKGROUND_DEPTH)
+    u = float(np.mean(terms)) if len(terms) else math.nan
+    return u, unshadowed_bound(cyc.floor_unshadowed, len(terms))
+
+
+def unshadowed_score(params: dict, resolution=RESOLUTION, samples: int = CYCLES_SAMPLES) -> tuple:
+    """(error, bound) of the unshadowed light on a hand-built scene in this generator's format:
+    the fuzz's Unshadowed check alone, which every technique shares (HARD renders it)."""
+    import json
+
+    import bpy
+
+    from ..blender.extract import extract
+    from ..core.settings import RenderSettings
+    from ..render import pipeline
+    scene = build(json.loads(json.dumps(params)), resolution)
+    cyc = cycles_side(scene, int(resolution[0]), int(resolution[1]), samples)
+    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+    result = pipeline.render(snap, RenderSettings(antialiasing=False, debug_passes=True).with_(technique="HARD"))
+    return _unshadowed_check(result, cyc)
+
+
 def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = CYCLES_SAMPLES,
                 overrides: dict | None = None, out_dir: str | None = None) -> list[Row]:
     """Build scene `seed`, render it with each technique and with Cycles, and score every technique. With
@@ -466,7 +494,6 @@ def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = 
     from ..blender.extract import extract
     from ..core.settings import RenderSettings
     from ..render import pipeline
-    from .compare import unshadowed_terms
     from .metrics import compare
 
     params = scene_params(seed)
@@ -496,10 +523,7 @@ def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = 
         v = result.passes["Visibility"][..., 0]
         m = compare(v, cyc.ref.visibility, cyc.ref.mask)
         b = bound(technique, floor, m["n_shadow"])
-        terms = unshadowed_terms(result.passes["Irradiance"] / np.pi, cyc.ref.unshadowed, cyc.ref.mask,
-                                 result.passes["Depth"][..., 0], pipeline.BACKGROUND_DEPTH)
-        u = float(np.mean(terms)) if len(terms) else math.nan
-        u_bound = unshadowed_bound(cyc.floor_unshadowed, len(terms))
+        u, u_bound = _unshadowed_check(result, cyc)
         mae = m["mae_shadow"] if m["n_shadow"] else 0.0     # no shadow on either side: nothing to miss
         status = "ok"
         if not mae <= b:

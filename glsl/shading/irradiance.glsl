@@ -108,26 +108,50 @@ float spot_footprint(vec3 center, float rho, vec3 n) {
     return sum * dt * ds;
 }
 
-// Attenuation-weighted mean over the disk: cells of equal solid angle (the share of the disk's solid angle
-// inside radius r is (1 − D/√(D² + r²)) / (1 − D/√(D² + ρ²))), weighted by the receiver's cosine.
-float spot_over_disk(vec3 center, vec3 u, vec3 v, vec3 n) {
+// Attenuation-weighted mean over the disk: `rings` × `sectors` cells of equal solid angle (the share of the
+// disk's solid angle inside radius r is (1 − D/√(D² + r²)) / (1 − D/√(D² + ρ²))), weighted by the receiver's
+// cosine. `split`: whether the cells or as many points on the rim disagree (the cone's edge or blend band
+// crosses the disk).
+float spot_disk_mean(vec3 center, vec3 u, vec3 v, vec3 n, int rings, int sectors, out bool split) {
     float D = length(center);
     float rho = length(u);
     float whole = 1.0 - D * inversesqrt(D * D + rho * rho);
     vec3 eu = u / rho, ev = v / rho;
-    float sum = 0.0, weight = 0.0;
-    for (int ring = 0; ring < 4; ++ring) {
-        float k = 1.0 - whole * (float(ring) + 0.5) / 4.0;         // D/√(D² + r²) of this ring
+    float sum = 0.0, weight = 0.0, lo = 1.0, hi = 0.0;
+    for (int ring = 0; ring < rings; ++ring) {
+        float k = 1.0 - whole * (float(ring) + 0.5) / float(rings);     // D/√(D² + r²) of this ring
         float r = D * sqrt(max(1.0 / (k * k) - 1.0, 0.0));
-        for (int sector = 0; sector < 8; ++sector) {
-            float phi = 6.28318530718 * (float(sector) + 0.5 * float(ring & 1)) / 8.0;
+        for (int sector = 0; sector < sectors; ++sector) {
+            float phi = 6.28318530718 * (float(sector) + 0.5 * float(ring & 1)) / float(sectors);
             vec3 p = center + r * (cos(phi) * eu + sin(phi) * ev);
             float w = max(dot(n, normalize(p)), 0.0);
-            sum += w * spot_attenuation(-p);
+            float a = spot_attenuation(-p);
+            sum += w * a;
             weight += w;
+            lo = min(lo, a);
+            hi = max(hi, a);
         }
     }
+    for (int sector = 0; sector < sectors; ++sector) {          // the rim, which no cell centre reaches
+        float phi = 6.28318530718 * (float(sector) + 0.5) / float(sectors);
+        float a = spot_attenuation(-center - cos(phi) * u - sin(phi) * v);
+        lo = min(lo, a);
+        hi = max(hi, a);
+    }
+    split = lo < hi;
     return weight > 0.0 ? sum / weight : spot_attenuation(-center);
+}
+
+// The disk's mean cone factor: 4 × 8 cells, and where the cone's edge crosses them, 12 × 24. Each cell lies
+// wholly in or out of a hard edge (no blend), so the mean steps by one cell's share as the edge sweeps the
+// disk from pixel to pixel: bands of ±1/32 that at the outer rim, where a few cells are lit, were tens of
+// per cent of the light. Fuzz 18021 (a 0.6 m spot 8.5 m away), relative error against Cycles over 3500
+// pixels: 0.069 with 4 × 8 cells, 0.031 with 8 × 16, 0.024 with 12 × 24, 0.020 with 16 × 32; Cycles' own
+// (a second seed) 0.024. Fuzz 17001: 0.112 → 0.031 (Cycles' own 0.038).
+float spot_over_disk(vec3 center, vec3 u, vec3 v, vec3 n) {
+    bool split;
+    float coarse = spot_disk_mean(center, u, v, n, 4, 8, split);
+    return split ? spot_disk_mean(center, u, v, n, 12, 24, split) : coarse;
 }
 
 // The cone factor of a disk too small for the form factor's edge sum: Cycles tests the cone per emitter
