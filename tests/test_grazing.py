@@ -174,23 +174,20 @@ def test_flat_shaded_bent_faces_are_lit_as_cycles_lights_them():
 # Issue 10's target for the grazing and tilted classes: the soft techniques within twice REFERENCE's mae_shadow.
 # Where a technique misses it the xfail names the cause and the measured figures (96², Cycles 256 spp).
 TWICE_REFERENCE_XFAIL = {
-    ("cube", "PCSS"): "the penumbra is wider than pcss_max_radius (0.1 of the map), so the kernels act as a smaller "
-                      "light's and the core comes out too dark: 0.089 against REFERENCE's 0.011 (0.016 at a cap of "
-                      "0.5, which makes suzanne, contact, tilted and slab worse)",
+    ("cube", "PCSS"): "the penumbra is wider than the blocker search's reach (pcss_max_radius, 0.1 of the map): "
+                      "blockers beyond it go unseen and the mean blocker depth comes out wrong. 0.048 against "
+                      "REFERENCE's 0.011 (0.089 with the filter capped at the search's reach too; 0.016 with both "
+                      "at 0.5, which makes suzanne, contact, tilted and slab worse)",
     ("slab", "PCSS"): "the ground at the foot of the slab's lit face: seen from the sun almost edge-on, the face fills "
                       "the filter there with texels nearer than the ground's plane, which the one-depth filter counts "
                       "as blocking rays that pass in front of the face, so the contact line comes out dark: 0.087 "
-                      "against REFERENCE's 0.013 (0.067 at 128² with the search weighted towards the "
-                      "receiver's own map position and midpoint blocker depths)",
+                      "against REFERENCE's 0.013 (0.062 with the search weighted towards the receiver's own "
+                      "map position, midpoint blocker depths and the filter's own cap)",
     ("slab", "SSM"): "the outer penumbra falls outside the light's map and is taken as lit: a sun's view is fitted with "
                      "no room for its disk of directions (lightview.fit). 0.028 against REFERENCE's 0.013; with the "
                      "window widened by each lit point's reach 0.015, but on random scenes with suns the coarser "
                      "maps cost more than the tail gains (fuzz 15012 0.071 -> 0.092, 15031 0.019 -> 0.033, and "
                      "every soft technique worse summed over seven such seeds), so it did not land",
-    ("grazing", "PCSS"): "on the line: 0.03123 against twice REFERENCE's 0.01561. The midpoint blocker depth "
-                         "(pcss_midpoint) moves a box's outline from its near face towards its middle: 0.0307 "
-                         "without it. It brought tilted from 0.038 (over a ball the depth map holds its top while "
-                         "its outline is its equator) under the target",
 }
 
 

@@ -49,7 +49,8 @@ def test_technique_settings_are_options_of_their_technique():
     from penumbra.engine.core.settings import SHARED
     declared = {t.identifier: {o.name for o in t.options} for t in techniques.TECHNIQUES.values()}
     assert declared["PCF"] == {"pcf_radius", "pcf_taps"}
-    assert declared["PCSS"] == {"pcss_blocker_samples", "pcss_filter_samples", "pcss_max_radius", "pcss_midpoint"}
+    assert declared["PCSS"] == {"pcss_blocker_samples", "pcss_filter_samples", "pcss_max_radius",
+                                "pcss_filter_max_radius", "pcss_midpoint"}
     assert declared["REFERENCE"] == {"averaged_light_samples", "averaged_weighted"}
     # RenderSettings keeps only what every technique shares.
     shared = {o.name for o in SHARED}
@@ -57,7 +58,7 @@ def test_technique_settings_are_options_of_their_technique():
     s = RenderSettings()
     assert (s.option("pcf_radius"), s.option("pcf_taps")) == (2.0, 5)
     assert (s.option("pcss_blocker_samples"), s.option("pcss_filter_samples"), s.option("pcss_max_radius"),
-            s.option("pcss_midpoint")) == (64, 64, 0.1, True)
+            s.option("pcss_filter_max_radius"), s.option("pcss_midpoint")) == (64, 128, 0.1, 0.2, True)
     assert (s.option("averaged_light_samples"), s.option("averaged_weighted")) == (64, True)
     assert (s.shadow_map_size, s.bias, s.normal_offset, s.seed, s.debug_passes) == (1024, 1.0, 0.5, 0, False)
 

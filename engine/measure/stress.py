@@ -459,9 +459,6 @@ EXPECTED_FAILURES = {
                              "bias 0 and normal_offset 0 fix it"),
     ("fp16_accumulation", "SSM"): ("deliberate: half-float blending stalls the umbra at V ≈ 0.5 (Atty et al. "
                                    "appendix A); fp16_batched and the float32 default pass"),
-    ("big_light", "PCSS"): ("PCSS with a light 10× the occluder: the mean blocker depth over a search region "
-                            "capped at pcss_max_radius (0.1 of the map) over-darkens the core (V_min 0 where the "
-                            "true minimum is 0.63); mae_shadow 0.085 > 0.06. A limit of the method, not a bug"),
     ("light_in_box", "PCSS"): ("light inside a closed box: the near plane sits at the light, so PCSS's search "
                                "and filter kernels reach past the map's edge, where texels count as empty "
                                "(max V 0.16 where it must be 0). Clamping to the edge instead puts false "

@@ -17,7 +17,7 @@ class Pcss(Technique):
         # 5.8 %, 4.5 % at 64); 64 cost 5–25 % more of PCSS's frame time on llvmpipe at 128².
         Option("pcss_blocker_samples", 64, "Blocker Samples", "Depth-map samples of the blocker search",
                min=1, max=1024),
-        Option("pcss_filter_samples", 64, "Filter Samples", "Depth-map comparisons of the variable filter",
+        Option("pcss_filter_samples", 128, "Filter Samples", "Depth-map comparisons of the variable filter",
                min=1, max=4096),
         # The cap is a bias trade-off, not a noise or cost guard (the tap counts are fixed; 4x the taps moves the
         # fuzz errors below by at most 0.02). Below the cap the kernels act as a smaller light's: a penumbra wider
@@ -28,8 +28,21 @@ class Pcss(Technique):
         # with a light almost touching its caster (stress near_light) the kernels reach past the map, whose
         # outside counts as empty: umbra leak 0.094 at 0.5, none at 0.1.
         Option("pcss_max_radius", 0.1, "Max Radius",
-               "Cap on the search and filter radius, as a fraction of the shadow map: wider penumbrae come out too "
-               "dark; raising it (0.5) suits very wide lights over lone casters", min=0.001, max=1.0),
+               "Cap on the blocker search's radius, as a fraction of the shadow map; raising it (0.5) suits very "
+               "wide lights over lone casters", min=0.001, max=1.0),
+        # The filter's own cap (ours), with 128 filter taps. Once the search has found blockers within its
+        # reach, the penumbra they cast may be wider than that reach (a cube or plane under a light as wide as
+        # they are). At 128² against Cycles 1024 spp, filter cap 0.1 → 0.2 and 64 → 128 taps: cube 0.088 →
+        # 0.048, plane and textured 0.069 → 0.017, silhouette 0.071 → 0.046, grazing 0.030 → 0.019, tilted
+        # 0.021 → 0.016, suzanne 0.040 → 0.035, balls 0.036 → 0.033, thin 0.037 → 0.031, slab 0.067 → 0.060; no
+        # scene worse by more than 0.0004 (city). The cap alone left suzanne's wider penumbrae stepped (the
+        # outlier share of tests/test_grazing.py 4.5 % → 5.3 %; with 128 taps 3.2 %). Fuzz 14000–14039 and
+        # 15000–15039: 25 scenes better by more than 0.001, 6 worse, mean 0.0287 → 0.0269; 8369 (the stacked
+        # casters above) 0.056 → 0.145 within its bound of 0.155; 8134 and 8335 0.233 / 0.223 → 0.157 / 0.162.
+        # Stress big_light passes (0.035).
+        Option("pcss_filter_max_radius", 0.2, "Max Filter Radius",
+               "Cap on the filter's radius, as a fraction of the shadow map (never below Max Radius): penumbrae "
+               "wider than it come out too dark", min=0.001, max=1.0),
         Option("pcss_midpoint", True, "Midpoint Blockers",
                "Take a blocker's depth halfway through its caster (between the faces the light centre sees and the "
                "back faces behind them), where a rounded caster's outline lies; off: the nearest surface, as in "
@@ -47,7 +60,8 @@ class Pcss(Technique):
             return maps
         # Every texel of the (capped) blocker-search area nearer than the receiver's plane is a blocker,
         # whether or not it lies in the pyramid towards the light: the classes must not narrow the area.
-        return maps + (need(LIT_UMBRA, narrow=False, cap=float(settings.option("pcss_max_radius"))),)
+        # The classes' area reaches as far as the filter does, which is at least as far as the search.
+        return maps + (need(LIT_UMBRA, narrow=False, cap=_filter_cap(settings)),)
 
     def visibility(self, frame, lc, out):
         s = frame.settings
@@ -57,8 +71,14 @@ class Pcss(Technique):
             **lc.uniforms, **light_shape_uniforms(lc.light, lc.view),
             "u_blocker_samples": int(s.option("pcss_blocker_samples")),
             "u_filter_samples": int(s.option("pcss_filter_samples")),
-            "u_max_radius": float(s.option("pcss_max_radius")) * max(lc.view.width, lc.view.height)},
+            "u_max_radius": float(s.option("pcss_max_radius")) * max(lc.view.width, lc.view.height),
+            "u_filter_max_radius": _filter_cap(s) * max(lc.view.width, lc.view.height)},
             samplers={"g_irradiance": lc.irradiance, "u_depth_map": lc.structures[DEPTH_MAP],
                       **({"u_classes": classes.classes} if classes else {}),
                       **({"u_back_map": back} if back is not None else {})},
             images={0: out}, defines={"EARLY_SKIP": int(classes is not None), "MIDPOINT": int(back is not None)})
+
+
+def _filter_cap(settings) -> float:
+    """The filter's cap: pcss_filter_max_radius, and never short of the search's (pcss_max_radius)."""
+    return max(float(settings.option("pcss_max_radius")), float(settings.option("pcss_filter_max_radius")))

@@ -36,17 +36,21 @@ uniform sampler2D u_classes;    // structures/lit_umbra.py: pixels proven lit or
 #endif
 uniform int u_blocker_samples;
 uniform int u_filter_samples;
-uniform float u_max_radius;     // texels
+uniform float u_max_radius;     // texels: the blocker search's reach
+uniform float u_filter_max_radius;
+#ifndef BGAIN
+#define BGAIN 2.0
+#endif  // texels: the filter's
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 
 // Texels per metre (tangent, for a sun) of light plane, per axis, for a blocker at depth z seen from receiver
 // depth d: a light-plane point q maps to the map offset q·spread(z, d)/texel (the similar triangles above),
-// the footprint's reach (|centre| + half_box) held between half a texel and u_max_radius texels. For a planar
-// light q = k·h, so the offset is k times the kernel's clamped half extent clamp(h·spread/texel), as before.
-vec2 texels_per_unit(Footprint f, float z, float d) {
+// the footprint's reach (|centre| + half_box) held between half a texel and `cap` texels. For a planar light
+// q = k·h, so the offset is k times the kernel's clamped half extent clamp(h·spread/texel), as before.
+vec2 texels_per_unit(Footprint f, float z, float d, float cap) {
     vec2 extent = abs(f.centre) + f.half_box;
     vec2 reach = extent * (penumbra_spread_clamped(z, d, u_light_ortho) / u_texel_tan);
-    return max(min(reach, vec2(u_max_radius)), vec2(0.5)) / max(extent, vec2(1e-30));
+    return max(min(reach, vec2(cap)), vec2(0.5)) / max(extent, vec2(1e-30));
 }
 
 // Whether light-plane point q (a direction (q, 1) in a sun's view) is a point of the light. Always so in the
@@ -85,7 +89,7 @@ bool whole_light_above(Receiver r, vec3 n) {
 // 0.089, suzanne 0.048 → 0.039, balls 0.051 → 0.045, tilted 0.041 → 0.035, plane 0.075 → 0.070; thin, city
 // within +0.001; fuzz 10000–10039 mean 0.0346 → 0.0338, none over its bound.
 // - Planar light, own view: the light's cosine over squared distance, for the point the tap really looks at
-//   (`shrink`: under pcss_max_radius the taps stand for a smaller light). The receiver's cosine counts only
+//   (`shrink`: under the caps the taps stand for a smaller light). The receiver's cosine counts only
 //   where the whole light is above its horizon: where the horizon cuts the light it put nearly all the weight on
 //   the few taps far above it, whose rays PCSS's single blocker depth maps worst (tests/test_rim_views.py's
 //   floor seeing a sliver of its light: 0.119 voted, 0.206 with that cosine, 0.117 without).
@@ -150,7 +154,7 @@ void main() {
         float d = r.map.z - r.bias;
         Footprint f = light_footprint(r.local);
         // 1. Blocker search over the region the light can be seen through at the near plane.
-        vec2 search = texels_per_unit(f, u_light_depth_range.x, d);
+        vec2 search = texels_per_unit(f, u_light_depth_range.x, d, u_max_radius);
         vec2 search_shrink = cap_shrink(search, u_light_depth_range.x, d);
         float blocker_sum = 0.0, blocker_weight = 0.0;
         // A rim view's receiver sees the sun through a sliver of the kernel's disk, which few of the pattern's
@@ -174,9 +178,11 @@ void main() {
             }
         }
         if (blocker_weight > 0.0) {
-            // 2. Penumbra size from the (weighted) mean blocker depth; 3. weighted PCF over it.
+            // 2. Penumbra size from the (weighted) mean blocker depth; 3. weighted PCF over it, under its own
+            // cap (pcss_filter_max_radius): a blocker the search found within its reach may cast a penumbra
+            // wider than that reach.
             float zb = blocker_sum / blocker_weight;
-            vec2 radius = texels_per_unit(f, zb, d), shrink = cap_shrink(radius, zb, d);
+            vec2 radius = texels_per_unit(f, zb, d, u_filter_max_radius), shrink = cap_shrink(radius, zb, d);
             float sum = 0.0, total = 0.0;
             for (int i = 0; i < u_filter_samples; ++i) {
                 vec2 q = light_point(f, kernel_point(i, u_filter_samples, u_light_round, 0.0));
