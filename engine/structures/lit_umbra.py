@@ -66,15 +66,18 @@ def build_coarse_pyramid(frame, depth, width: int, height: int):
 
 
 @structure(LIT_UMBRA, requires=(DEPTH_MAP,))
-def build(frame, lc, narrow: bool = False, cap: float = 0.0, texel_ratio: float = 1.0):
+def build(frame, lc, narrow: bool = False, cap: float = 0.0, texel_ratio: float = 1.0, umbra_cap: float = 0.0):
     """`narrow`: the area may shrink to the section at the least depth found in it (two passes more) — valid
     for a gather that follows rays to the light (REFERENCE), not for one that counts every texel of its
     search area nearer than the receiver's plane as a blocker (PCSS). `cap`: the area's half extent is
     capped at this fraction of the map's larger side, as a gather that never looks farther caps its own
     (0: no cap). `texel_ratio`: how much larger than this view's the texels of the gather's own maps may be
-    (their bias and normal offset grow with them; 1: the gather reads this view's depth map)."""
+    (their bias and normal offset grow with them; 1: the gather reads this view's depth map). `umbra_cap`:
+    the cap of the gather's widest kernel where it reaches past its search (PCSS's filter; 0: `cap`), over
+    which umbra must hold."""
     view, s = lc.view, frame.settings
     cap_texels = cap * max(view.width, view.height) if cap > 0.0 else 1.0e7
+    umbra_texels = max(cap_texels, umbra_cap * max(view.width, view.height)) if cap > 0.0 else cap_texels
     with frame.timings.stage("lit_umbra"):
         pyramid, levels, padded, base = build_coarse_pyramid(frame, lc.structures[DEPTH_MAP], view.width,
                                                              view.height)
@@ -82,7 +85,7 @@ def build(frame, lc, narrow: bool = False, cap: float = 0.0, texel_ratio: float 
         frame.dispatch("lit_umbra/classify.comp", {
             **lc.uniforms, **light_shape_uniforms(lc.light, view), "u_levels": levels, "u_base": base,
             "u_light_depth_extent": light_depth_extent(lc.light, view.face), "u_margin": MARGIN_TEXELS,
-            "u_passes": 3 if narrow else 1, "u_cap": cap_texels,
+            "u_passes": 3 if narrow else 1, "u_cap": cap_texels, "u_umbra_cap": umbra_texels,
             "u_texel_ratio": float(texel_ratio),
             "u_slack": SLACK_TEXELS * (1.0 + float(s.bias) + float(s.normal_offset))},
             samplers={"g_irradiance": lc.irradiance, "u_pyramid": pyramid}, images={0: classes})

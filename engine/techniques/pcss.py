@@ -60,8 +60,9 @@ class Pcss(Technique):
             return maps
         # Every texel of the (capped) blocker-search area nearer than the receiver's plane is a blocker,
         # whether or not it lies in the pyramid towards the light: the classes must not narrow the area.
-        # The classes' area reaches as far as the filter does, which is at least as far as the search.
-        return maps + (need(LIT_UMBRA, narrow=False, cap=_filter_cap(settings)),)
+        # Lit where the search finds nothing; umbra only where the filter, reaching further, finds only blockers.
+        return maps + (need(LIT_UMBRA, narrow=False, cap=float(settings.option("pcss_max_radius")),
+                            umbra_cap=_filter_cap(settings)),)
 
     def visibility(self, frame, lc, out):
         s = frame.settings

@@ -30,6 +30,7 @@ uniform float u_margin;             // texels added to the area on each side (ke
 uniform float u_slack;              // depth slack, in texels at the receiver scaled by its slope
 uniform int u_passes;               // 1: the area at the near plane only; more: narrowed to the least depth
 uniform float u_cap;                // texels: the most the area's half extent may reach (a technique's cap)
+uniform float u_umbra_cap;          // texels: the same for the gather's widest kernel (PCSS's filter), ≥ u_cap
 uniform float u_texel_ratio;        // the largest texel of the gather's maps over this map's (1: this map)
 layout(r32f, binding = 0) uniform writeonly image2D u_class;
 
@@ -131,7 +132,8 @@ float classify(ivec2 px) {
     bool centre_above = centre_above_plane(r);
     float z = u_light_depth_range.x;
     for (int pass = 0; pass < u_passes; ++pass) {
-        vec2 half_ = min(h * penumbra_spread_clamped(z, d, u_light_ortho) / u_texel_tan, vec2(u_cap)) + u_margin;
+        vec2 reach = h * penumbra_spread_clamped(z, d, u_light_ortho) / u_texel_tan;
+        vec2 half_ = min(reach, vec2(u_cap)) + u_margin;
         ivec2 lo = ivec2(floor(c - half_)), hi = ivec2(floor(c + half_));
         if (any(greaterThanEqual(lo, u_map_size)) || any(lessThan(hi, ivec2(0)))) return float(CLASS_LIT);
         bool inside = all(greaterThanEqual(lo, ivec2(0))) && all(lessThan(hi, u_map_size));
@@ -140,6 +142,15 @@ float classify(ivec2 px) {
         vec3 t = cell_test(r, max(lo, ivec2(0)), min(hi, u_map_size - 1), centre_above, d, slack,
                            pass + 1 < u_passes);
         if (t.x > 0.0) return float(CLASS_LIT);
+        // A search that finds nothing leaves the pixel lit, but a kernel reaching past the search (PCSS's
+        // filter) must find nothing but blockers over all of its reach for the pixel to be in umbra.
+        vec2 wide = min(reach, vec2(u_umbra_cap)) + u_margin;
+        if (t.y > 0.0 && any(greaterThan(wide, half_))) {
+            lo = ivec2(floor(c - wide));
+            hi = ivec2(floor(c + wide));
+            inside = all(greaterThanEqual(lo, ivec2(0))) && all(lessThan(hi, u_map_size));
+            if (inside) t.y = cell_test(r, lo, hi, centre_above, d, slack, false).y;
+        }
         if (t.y > 0.0 && inside && umbra_gap(r, px, d, rho, slack, tan_t, t.y)) return float(CLASS_UMBRA);
         vec2 zr = t.zz;
         if (!(zr.x > z)) break;         // nothing to narrow
