@@ -114,7 +114,12 @@ bool umbra_gap(Receiver r, ivec2 px, float d, float rho, float slack, float tan_
 }
 
 float classify(ivec2 px) {
-    Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, texelFetch(g_geometric, px, 0).xyz);
+    vec4 geometric = texelFetch(g_geometric, px, 0);
+    Receiver r = make_receiver(texelFetch(g_position, px, 0).xyz, geometric.xyz);
+    // The gathers' shadow rays leave a smooth triangle lifted towards the light (make_lit_receiver): past
+    // blockers within the lift of the surface, so the unlifted point's umbra proves nothing for them. Its
+    // lit holds, the lifted point's tangent plane lying higher still.
+    bool lifted = u_terminator_offset > 0.0 && geometric.w != 0.0;
     float d = r.map.z;
     float rho = u_light_ortho == 1 ? 0.0 : u_light_depth_extent;
     if (!(d > 1.001 * rho) || !(d > 0.0)) return float(CLASS_GATHER);   // a receiver within the light's depth
@@ -151,7 +156,7 @@ float classify(ivec2 px) {
             inside = all(greaterThanEqual(lo, ivec2(0))) && all(lessThan(hi, u_map_size));
             if (inside) t.y = cell_test(r, lo, hi, centre_above, d, slack, false).y;
         }
-        if (t.y > 0.0 && inside && umbra_gap(r, px, d, rho, slack, tan_t, t.y)) return float(CLASS_UMBRA);
+        if (t.y > 0.0 && inside && !lifted && umbra_gap(r, px, d, rho, slack, tan_t, t.y)) return float(CLASS_UMBRA);
         vec2 zr = t.zz;
         if (!(zr.x > z)) break;         // nothing to narrow
         z = zr.x;
