@@ -323,3 +323,32 @@ def test_params_survive_json():
     assert json.loads(json.dumps(p)) == p
     q = copy.deepcopy(p)
     assert fuzz.describe(q) == fuzz.describe(p)
+
+
+def test_failure_class_names_a_light_whose_emitter_crosses_a_caster():
+    """From the extracted triangles: a sphere or area light whose emitter reaches a caster's surface (fuzz
+    18024 and 18063, where every soft technique and REFERENCE missed: Cycles blocks the emitter's points
+    beyond the caster's wall). Not a light clear of every caster, not a sun, not a caster that casts no shadow."""
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.core.snapshot import POINT, SUN, Light
+    from penumbra.engine.measure import stress
+    box = stress.box((-1, -1, 0), (1, 1, 1))
+
+    def crossing(light, caster=True):
+        snap = stress.assemble([("Box", box, caster, True)], [light], stress.camera(), "crossing")
+        return fuzz.crossing_lights(snap)
+
+    def lamp(radius):
+        return Light("Lamp", POINT, stress.look_at((0.0, 0.0, 1.3), (0.0, 0.0, 0.0)), np.ones(3), 100.0, radius=radius)
+    assert crossing(lamp(0.5)) == ["Lamp"]
+    assert crossing(lamp(0.2)) == []
+    assert crossing(lamp(0.5), caster=False) == []
+    assert crossing(stress.area_light((0.0, 0.0, 1.5), size=1.0)) == ["Area"]      # half diagonal 0.71 > 0.5
+    assert crossing(stress.area_light((0.0, 0.0, 1.9), size=1.0)) == []
+    assert crossing(Light("Sun", SUN, stress.look_at((0.0, 0.0, 1.3), (0.0, 0.0, 0.0)), np.ones(3), 3.0,
+                          angle=3.0)) == []
+    for seed in (18024, 18063):
+        params = fuzz.scene_params(seed)
+        scene = fuzz.build(params, (16, 16))
+        snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+        assert "light crosses a caster" in fuzz.failure_class(params, [], snap).split(", ")

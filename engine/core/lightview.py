@@ -745,13 +745,13 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
         triangles = snap.drawn_triangles(int(index))
         if solids.ball_inside(triangles, centre, radius) is not True:
             continue
-        if light.kind == SUN or solids.ball_inside(triangles, light.position, _light_radius(light)) is False:
+        if light.kind == SUN or solids.ball_inside(triangles, light.position, light_ball_radius(light)) is False:
             return int(index)
     return None
 
 
-def _light_radius(light: Light) -> float:
-    """The radius of a ball around the light's centre that holds all of its emitter."""
+def light_ball_radius(light: Light) -> float:
+    """The radius of a ball around the light's centre that holds all of its emitter (not for a sun)."""
     if light.kind == AREA:
         return 0.5 * float(np.hypot(light.size_x, light.size_y))
     return float(light.radius)
