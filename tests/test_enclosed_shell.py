@@ -72,3 +72,8 @@ def test_a_walled_off_light_gets_no_views(technique):
     assert both.stats["lights_enclosed"] == 1 and both.stats["views"] >= 1
     v = both.passes["Visibility"][..., 0]
     assert v.max() > 0.5 and v.min() < 0.2      # the lamp lights (V counts the sun's share as shadowed too)
+    # A room the camera sees through (visible_camera off) walls off nothing it sees: the floor beyond it is lit
+    see_through = [("Room", parts[0][1], True, False), parts[1],
+                   ("Floor", stress.box((-9, -9, -0.1), (9, 9, 0.0)), True, True)]
+    through = pipeline.render(stress.assemble(see_through, [sun], cam, "through"), settings)
+    assert through.stats["lights_enclosed"] == 0

@@ -714,7 +714,7 @@ def _in_front_of_any(points: np.ndarray, normals: np.ndarray, offsets: np.ndarra
 
 
 def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int | None:
-    """A closed caster among `casters` (object indices) that holds the camera's whole near plane while
+    """A closed caster among `casters` (object indices), seen by the camera, that holds its whole near plane while
     `light` lies wholly outside it, or None. Then every point the camera sees lies inside it or on its
     inner surface, and every path from there to any point of the light crosses it: the light reaches none of
     the visible receivers (a room or a huge ball around the camera, lit from outside). A convex caster of
@@ -726,7 +726,9 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
     near = near[:, :3] / near[:, 3:]
     if not np.all(np.isfinite(near)):
         return None
-    wanted = set(int(i) for i in casters)
+    # The shell must stop the camera's rays too: one the camera sees through (visible_camera off) may hold
+    # the camera while the receivers it sees lie outside, lit.
+    wanted = set(int(i) for i in casters if snap.objects[int(i)].receiver)
     bounds = snap.object_bounds()
     convex = snap.convex_objects(max_faces, around=near, bounds=bounds)
     for index, (normals, offsets) in convex.items():
