@@ -528,6 +528,20 @@ def test_light_temperature_normalize_and_zero_size(scn):
     assert "area light 'Zero' has zero size: Cycles renders no light from it, and neither does Penumbra" in s.warnings
 
 
+def test_light_linking_is_named_in_a_warning(scn):
+    """Light and shadow linking (Blender 4.0+) are not modelled: the light reaches and is blocked by every
+    object, and a warning names the light, once."""
+    lamp = _light(scn, "Linked", "POINT", energy=10)
+    _light(scn, "Plain", "POINT", energy=10)
+    assert not any("linking" in w for w in snap().warnings)
+    lamp.light_linking.blocker_collection = bpy.data.collections.new("Blockers")
+    s = snap()
+    assert [w for w in s.warnings if "linking" in w] == [
+        "light 'Linked' uses light or shadow linking, which Penumbra does not model: every object receives its "
+        "light and blocks it"]
+    assert {light.name for light in s.lights} >= {"Linked", "Plain"}
+
+
 def test_no_lights_is_not_an_extraction_error(scn):
     bpy.data.objects.remove(bpy.data.objects["Key"])
     add_cube(scn)

@@ -880,6 +880,10 @@ def extract(depsgraph, scene=None, *, width: int | None = None, height: int | No
             group[2].append(ids[1])
         elif ob_type == "LIGHT":
             lights.append(make_light(ob.name, ob.data, _matrix_np(inst.matrix_world), warn_once))
+            linking = getattr(ob, "light_linking", None)        # Blender 4.0+
+            if linking is not None and (linking.receiver_collection or linking.blocker_collection):
+                warn_once(f"light '{ob.name}' uses light or shadow linking, which Penumbra does not model: every "
+                          f"object receives its light and blocks it")
 
     geometry, textures = _assemble(groups, mesh_arrays, albedo_tables, warn_once)
     geometry = sanitize(geometry, objects, warnings)
