@@ -179,7 +179,8 @@ def _dented_box(lo, hi, dent):
 def test_a_closed_shell_that_is_not_convex_hides_every_light_outside_it():
     """lightview.enclosing_shell beyond convex casters (fuzz: a huge torus or dented solid around the camera):
     the side of a ball around the near plane and one around the light, by a ray's crossings of the closed
-    surface. Not for a light inside, a light whose emitter reaches through the surface, or a camera outside."""
+    surface. Not for a light on the camera's side, or one whose emitter reaches through the surface; a lamp
+    inside with the camera outside is walled off too."""
     from penumbra.engine.core import solids
     from penumbra.engine.core.snapshot import SUN, Light
     room = _dented_box((-3, -3, 0), (3, 3, 3), dent=1.5)
@@ -193,6 +194,9 @@ def test_a_closed_shell_that_is_not_convex_hides_every_light_outside_it():
     assert lightview.enclosing_shell(snap, stress.area_light((0.0, 0.0, 1.6), size=0.4), [0]) is None  # through the roof
     assert lightview.enclosing_shell(stress.assemble([("Room", room, True, True)], [sun], outside, "out"),
                                      sun, [0]) is None
+    # the other way round: a lamp inside the closed room, the camera outside it
+    assert lightview.enclosing_shell(stress.assemble([("Room", room, True, True)], [sun], outside, "out"),
+                                     stress.area_light((2.0, 0.0, 1.0), size=0.4), [0]) == 0
     # the crossing count itself: a ray from inside leaves once, one from the dent's hollow crosses the roof twice
     assert solids.ball_inside(room, (1.0, -1.0, 1.0), 0.5) is True
     assert solids.ball_inside(room, (0.0, 0.2, 2.9), 0.05) is False

@@ -714,12 +714,13 @@ def _in_front_of_any(points: np.ndarray, normals: np.ndarray, offsets: np.ndarra
 
 
 def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int | None:
-    """A closed caster among `casters` (object indices), seen by the camera, that holds its whole near plane while
-    `light` lies wholly outside it, or None. Then every point the camera sees lies inside it or on its
-    inner surface, and every path from there to any point of the light crosses it: the light reaches none of
-    the visible receivers (a room or a huge ball around the camera, lit from outside). A convex caster of
-    up to `max_faces` faces is decided by its face planes; any other closed caster by the side of a ball
-    around the near plane and one around the light (solids.ball_inside)."""
+    """A closed caster among `casters` (object indices), seen by the camera, with the camera's whole near plane
+    on one side of it and `light` wholly on the other, or None. Every point the camera sees then lies on the
+    camera's side (the caster stops every camera ray that would cross it), and every path from there to any
+    point of the light crosses it: the light reaches none of the visible receivers (a room or a huge ball
+    around the camera lit from outside, a lamp inside a closed box seen from outside). A convex caster of up
+    to `max_faces` faces around the camera is decided by its face planes; any other case by the side of a
+    ball around the near plane and one around the light (solids.ball_inside); a sun lies outside them all."""
     cam = snap.camera
     ndc = np.array([[x, y, -1.0, 1.0] for x in (-1.0, 1.0) for y in (-1.0, 1.0)])
     near = ndc @ np.linalg.inv(np.asarray(cam.projection, float) @ np.asarray(cam.view, float)).T
@@ -730,8 +731,7 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
     # the camera while the receivers it sees lie outside, lit.
     wanted = set(int(i) for i in casters if snap.objects[int(i)].receiver)
     bounds = snap.object_bounds()
-    convex = snap.convex_objects(max_faces, around=near, bounds=bounds)
-    for index, (normals, offsets) in convex.items():
+    for index, (normals, offsets) in snap.convex_objects(max_faces, around=near, bounds=bounds).items():
         if index not in wanted:
             continue
         scale = max(float(np.abs(bounds[index]).max()), 1.0)
@@ -740,14 +740,21 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
             return index
     centre = near.mean(axis=0)
     radius = float(np.linalg.norm(near - centre, axis=1).max())
-    holding = np.all((near[None] >= bounds[:, None, 0]) & (near[None] <= bounds[:, None, 1]), axis=(1, 2))
-    for index in np.flatnonzero(holding):
-        if int(index) not in wanted or int(index) in convex or not snap.is_closed(int(index)):
+    holds_camera = np.all((near[None] >= bounds[:, None, 0]) & (near[None] <= bounds[:, None, 1]), axis=(1, 2))
+    holds_light = np.zeros(len(bounds), bool)
+    if light.kind != SUN:
+        position = np.asarray(light.position, float)
+        holds_light = np.all((position >= bounds[:, 0]) & (position <= bounds[:, 1]), axis=1)
+    for index in np.flatnonzero(holds_camera | holds_light):
+        if int(index) not in wanted or not snap.is_closed(int(index)):
             continue
         triangles = snap.drawn_triangles(int(index))
-        if solids.ball_inside(triangles, centre, radius) is not True:
+        camera_inside = solids.ball_inside(triangles, centre, radius)
+        if camera_inside is None:
             continue
-        if light.kind == SUN or solids.ball_inside(triangles, light.position, light_ball_radius(light)) is False:
+        light_inside = False if light.kind == SUN else solids.ball_inside(triangles, light.position,
+                                                                           light_ball_radius(light))
+        if light_inside is not None and light_inside != camera_inside:
             return int(index)
     return None
 

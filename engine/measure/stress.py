@@ -452,17 +452,12 @@ _SSM_NEAR_LIGHT = ("SSM renders one perspective occluder map from the light cent
 EXPECTED_FAILURES = {
     **{("touch_plane", t): _BIAS_LEAK for t in ("HARD", "PCF", "PCSS", "REFERENCE", "BACKPROJECTION", "SPSM", "PVSM")},
     ("near_light", "SSM"): _SSM_NEAR_LIGHT,
-    ("light_in_box", "SSM"): _SSM_NEAR_LIGHT,
     ("touch_plane", "SSM"): ("SSM keeps a receiver from shadowing itself by the same tangent-plane rule and default "
                              "bias (1 texel + 0.5 texel normal offset ≈ 1 cm at its 256² map) as the shadow-map "
                              "techniques, which exceed the 1e-4 m gap: light leaks under the touching occluder; "
                              "bias 0 and normal_offset 0 fix it"),
     ("fp16_accumulation", "SSM"): ("deliberate: half-float blending stalls the umbra at V ≈ 0.5 (Atty et al. "
                                    "appendix A); fp16_batched and the float32 default pass"),
-    ("light_in_box", "PCSS"): ("light inside a closed box: the near plane sits at the light, so PCSS's search "
-                               "and filter kernels reach past the map's edge, where texels count as empty "
-                               "(max V 0.16 where it must be 0). Clamping to the edge instead puts false "
-                               "shadows on receivers near the window's border (grazing, eight_lights)"),
 }
 
 

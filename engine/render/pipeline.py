@@ -134,10 +134,11 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             continue
         casters = shell = None
         if light.casts_shadow and has_casters:
-            # A closed caster around everything the camera sees, with the light outside it: every path from a
-            # visible receiver to the light crosses it, so nothing is lit, whatever the light's size. Decided
-            # here for every technique: from inside, a wide light's rays leave through the shell's half
-            # turned away from the light, which a map from the light holds in no single layer.
+            # A closed caster with the camera on one side and the light on the other (a shell around the
+            # camera lit from outside, a lamp in a closed box seen from outside): every path from a visible
+            # receiver to the light crosses it, so nothing is lit, whatever the light's size. Decided here for
+            # every technique: from inside, a wide light's rays leave through the shell's half turned away
+            # from the light, which a map from the light holds in no single layer.
             shell = lightview.enclosing_shell(snap, light, caster_indices)
             if shell is None:
                 casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, sides)
