@@ -14,7 +14,6 @@ import numpy as np
 
 from .snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Light
 from .light_shape import penumbra_spread, spot_cone_tans
-from . import solids
 from .shading import SUN_MAX_HALF
 from .matrices import mat_uniform
 
@@ -748,19 +747,21 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
     for index in np.flatnonzero(holds_camera | holds_light):
         if int(index) not in wanted or not snap.is_closed(int(index)):
             continue
-        triangles = snap.drawn_triangles(int(index))
-        camera_inside = solids.ball_inside(triangles, centre, radius)
+        camera_inside = snap.ball_inside(int(index), centre, radius)
         if camera_inside is None:
             continue
-        light_inside = False if light.kind == SUN else solids.ball_inside(triangles, light.position,
-                                                                           light_ball_radius(light))
+        light_inside = False if light.kind == SUN else snap.ball_inside(int(index), light.position,
+                                                                         light_ball_radius(light))
         if light_inside is not None and light_inside != camera_inside:
             return int(index)
     return None
 
 
 def light_ball_radius(light: Light) -> float:
-    """The radius of a ball around the light's centre that holds all of its emitter (not for a sun)."""
+    """The radius of a ball around the light's centre that holds all of its emitter; 0 for a sun, which has
+    no centre in the scene."""
+    if light.kind == SUN:
+        return 0.0
     if light.kind == AREA:
         return 0.5 * float(np.hypot(light.size_x, light.size_y))
     return float(light.radius)

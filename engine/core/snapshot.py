@@ -10,6 +10,8 @@ from functools import cached_property
 
 import numpy as np
 
+from . import solids
+
 # Light kinds, as Blender names them.
 AREA, POINT, SPOT, SUN = "AREA", "POINT", "SPOT", "SUN"
 # Area light shapes.
@@ -330,6 +332,18 @@ class SceneSnapshot:
     @cached_property
     def _closed(self) -> dict:
         """is_closed's answers, once per object and snapshot (every light of every frame asks)."""
+        return {}
+
+    def ball_inside(self, index: int, centre, radius: float) -> bool | None:
+        """solids.ball_inside for object `index`'s drawn triangles, once per ball and snapshot: every light
+        of a frame asks about the ball around the camera's near plane."""
+        key = (index, *(float(v) for v in centre), float(radius))
+        if key not in self._ball_sides:
+            self._ball_sides[key] = solids.ball_inside(self.drawn_triangles(index), centre, radius)
+        return self._ball_sides[key]
+
+    @cached_property
+    def _ball_sides(self) -> dict:
         return {}
 
     def terminator_offset(self) -> tuple[float, str | None]:

@@ -73,6 +73,18 @@ def ray_meets_boxes(point, direction, lo: np.ndarray, hi: np.ndarray) -> np.ndar
     return leave >= np.maximum(enter, 0.0)
 
 
+def ball_touches(triangles: np.ndarray, centre, radius: float, lo=None, hi=None) -> bool:
+    """Whether some triangle (T, 3, 3) comes within `radius` of `centre`; only those whose boxes (lo, hi:
+    the triangles' corner minima and maxima, when the caller has them) the ball's box meets are measured."""
+    if not len(triangles):
+        return False
+    c = np.asarray(centre, float)
+    lo = triangles.min(axis=1) if lo is None else lo
+    hi = triangles.max(axis=1) if hi is None else hi
+    near = np.all((lo <= c + radius) & (hi >= c - radius), axis=1)
+    return bool(near.any()) and float(triangle_distances(c, triangles[near]).min()) <= radius
+
+
 def ball_inside(triangles: np.ndarray, centre, radius: float) -> bool | None:
     """Whether the ball (centre, radius) lies wholly inside the closed surface `triangles` (T, 3, 3), wholly
     outside it (False), or None: the ball touches the surface (to 1e-6 of the surface's size), or two rays
@@ -83,9 +95,7 @@ def ball_inside(triangles: np.ndarray, centre, radius: float) -> bool | None:
     c = np.asarray(centre, float)
     lo_t, hi_t = triangles.min(axis=1), triangles.max(axis=1)
     tol = 1e-6 * max(float(np.abs(hi_t.max(axis=0) - lo_t.min(axis=0)).max()), 1e-30)
-    reach = radius + tol
-    near = np.all((lo_t <= c + reach) & (hi_t >= c - reach), axis=1)
-    if near.any() and float(triangle_distances(c, triangles[near]).min()) <= reach:
+    if ball_touches(triangles, c, radius + tol, lo_t, hi_t):
         return None
     sides = []
     for d in _DIRECTIONS:

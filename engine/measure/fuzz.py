@@ -411,18 +411,14 @@ def crossing_lights(snap) -> list[str]:
     bounds = snap.object_bounds()
     out = []
     for light in snap.lights:
-        radius = lightview.light_ball_radius(light) if light.kind != "SUN" else 0.0
+        radius = lightview.light_ball_radius(light)
         if radius <= 0.0:
             continue
         centre = np.asarray(light.position, float)
         near = np.all((centre >= bounds[:, 0] - radius) & (centre <= bounds[:, 1] + radius), axis=1)
-        for index in np.flatnonzero(near):
-            if not snap.objects[index].caster:
-                continue
-            triangles = snap.drawn_triangles(int(index))
-            if len(triangles) and float(solids.triangle_distances(centre, triangles).min()) < radius:
-                out.append(light.name)
-                break
+        if any(snap.objects[i].caster and solids.ball_touches(snap.drawn_triangles(int(i)), centre, radius)
+               for i in np.flatnonzero(near)):
+            out.append(light.name)
     return out
 
 
