@@ -114,7 +114,7 @@ def test_reference_matches_cycles_under_spots_as_wide_as_their_distance(case):
     sc = fuzz.build(CASES[case], res)
     cyc = fuzz.cycles_side(sc, res[0], res[1], fuzz.CYCLES_SAMPLES)
     snap = extract(bpy.context.evaluated_depsgraph_get(), sc)
-    r = pipeline.render(snap, RenderSettings().with_(technique="REFERENCE"))
+    r = pipeline.render(snap, RenderSettings().with_(technique="REFERENCE", averaged_light_samples=64))
     m = metrics.compare(r.passes["Visibility"][..., 0], cyc.ref.visibility, cyc.ref.mask)
     bound = fuzz.bound("REFERENCE", cyc.floor["mae_shadow"], m["n_shadow"])
     print(f"{case}: mae_shadow {m['mae_shadow']:.4f} bound {bound:.4f} floor {cyc.floor['mae_shadow']:.4f}")

@@ -155,6 +155,38 @@ def scene_params(seed: int) -> dict:
     return dict(seed=int(seed), objects=objects, floor=floor, lights=lights, camera=cam)
 
 
+# Hand-built scenes in the generator's format, for tests of one class of scene (`shadow_score`).
+def hand_object(name: str, primitive: str, location, scale, rotation=(0.0, 0.0, 0.0), *, transform: str = "plain",
+                smooth: bool = False) -> dict:
+    return dict(name=name, primitive=primitive, transform=transform, location=[float(v) for v in location],
+                rotation=[float(v) for v in rotation], scale=[float(v) for v in scale], smooth=bool(smooth))
+
+
+def hand_light(name: str, kind: str, location, target, energy: float, *, scale=(1.0, 1.0, 1.0),
+               **shape) -> dict:
+    """A light; `shape`: the type's own keys (size, size_y, shape; radius, soft_falloff, spot_size, spot_blend;
+    angle), as `_light_params` draws them."""
+    scale = [float(v) for v in scale]
+    kind_of_scale = ("one" if scale == [1.0] * 3 else "zero" if 0.0 in scale else "mirrored" if min(scale) < 0.0
+                     else "uniform" if len(set(scale)) == 1 else "nonuniform")
+    return dict(name=name, type=kind, location=[float(v) for v in location], target=[float(v) for v in target],
+                scale=scale, scale_kind=kind_of_scale,
+                distance=float(np.linalg.norm(np.subtract(location, target))), energy=float(energy), **shape)
+
+
+def hand_camera(location, target, lens: float = 35.0, *, ortho: bool = False, ortho_scale: float = 2.0,
+                inside: str | None = None) -> dict:
+    return dict(ortho=ortho, location=[float(v) for v in location], target=[float(v) for v in target],
+                lens=float(lens), ortho_scale=float(ortho_scale), inside=inside)
+
+
+def hand_scene(objects: list, lights: list, camera: dict, *, floor_half_size: float | None = None,
+               floor_z: float = 0.0, floor_rotation=(0.0, 0.0, 0.0), seed: int = 0) -> dict:
+    floor = None if floor_half_size is None else dict(half_size=float(floor_half_size),
+                                                      rotation=[float(v) for v in floor_rotation], z=float(floor_z))
+    return dict(seed=int(seed), objects=list(objects), floor=floor, lights=list(lights), camera=camera)
+
+
 def describe(params: dict) -> str:
     """A one-line summary: objects (with their extreme transforms), floor, lights, camera."""
     short = {"plain": "", "nonuniform": "~", "mirrored": "-", "flattened": "_", "tiny": ".", "huge": "+",
