@@ -423,7 +423,9 @@ const int REFIT_PARTS = REFIT_PARTS_MICRORECT;
 const int REFIT_PARTS = REFIT_PARTS_MICROPATCH;
 #endif
 
-bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, inout vec2 p1, out vec3 slope) {
+// `centre`: the mean of the occluding parts' centres, where cover() shrinks the box towards.
+bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, inout vec2 p1, out vec3 slope,
+           out vec2 centre) {
     int f = l - 1;
     vec2 lo = vec2(NO_OCCLUDER), hi = vec2(-NO_OCCLUDER);
     float zmin = NO_OCCLUDER, zsum = 0.0, n = 0.0;
@@ -454,6 +456,7 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
         xxsum += x * x;
     }
     slope = vec3(0.0, 0.0, zmin);
+    centre = p0 + xsum / max(n, 1.0);
     if (n == 0.0) return false;
 #if REFIT == REFIT_PLANE
     // Least-squares slope of the parts' depths, per axis (the parts lie on a grid, so the axes decouple).
@@ -495,16 +498,17 @@ vec4 cov_fetch(int layer, int l, ivec2 c) {
 // are read as two clusters, a far one at M (the receiver's own surface, the ground behind a fence) and a
 // near one, which matching μ and σ² puts at share (M − μ)² / (σ² + (M − μ)²) (exact for two depths; a near
 // cluster spread in depth comes out smaller, never above its true share). The box [p0, p1) (after the
-// refit) is shrunk about its centre to the area of the occluding texels (never grown): the same occluded
-// area of the light, spread as the texels are. Cells tile the map, so a cell's box always takes that area;
+// refit) is shrunk to the area of the occluding texels (never grown), towards the refit's occluding parts
+// (`centre`) and along the axis they lean on: the same occluded area of the light, where the texels are.
+// Cells tile the map, so a cell's box always takes that area;
 // microrect extents overlap their neighbours' (n can be less than the extent of a solid surface), so a
 // microrect of the depth map whose members all occlude keeps its box whole, as in the papers. A peeled layer
 // (layer > 0) is sparse: its texels are what the layers in front hide, scattered over a microrect's extent,
 // so there the members' count is measured against their own 2^l × 2^l block; and a partly covering coarse
-// micro-occluder of a peeled layer is left out: shrunk about its own centre it no longer lines up with the
+// micro-occluder of a peeled layer is left out: shrunk on its own it no longer lines up with the
 // one in front that hides the same occluder, and the two together doubled the occlusion of thin bars and
 // slabs (thin at 2 layers: 0.30; level 0 and whole coarse cells still count). False: nothing occludes.
-bool cover(Pixel p, int layer, int l, ivec2 c, inout vec2 p0, inout vec2 p1) {
+bool cover(Pixel p, int layer, int l, ivec2 c, vec2 centre, inout vec2 p0, inout vec2 p1) {
     vec4 s = cov_fetch(layer, l, c);       // mean, count, max, variance
     if (s.g <= 0.0) return false;
     float d = min(receiver_depth_min(p, p0, p1), p.d * (1.0 - SELF_GAP));
@@ -525,7 +529,14 @@ bool cover(Pixel p, int layer, int l, ivec2 c, inout vec2 p0, inout vec2 p1) {
     float share = min(near * s.g / max(room, 1e-30), 1.0);
     if (share >= 1.0) return true;
     if (layer > 0) return false;
-    vec2 half_size = 0.5 * size * sqrt(share), mid = 0.5 * (p0 + p1);
+    // Shrunk towards the occluding parts (`centre`): a box of side fraction f pressed against one side of
+    // [p0, p1) has its centre 1 − f of the half side off the middle, so the offsets say how the share splits
+    // between the axes (parts on one side of the cell: that axis alone; in a corner, or centred: both alike).
+    vec2 offset = clamp(abs(centre - 0.5 * (p0 + p1)) / max(0.5 * size, vec2(1e-12)), 0.0, 0.99);
+    vec2 lean = log(1.0 - offset);
+    float split = lean.x + lean.y < -1e-4 ? lean.x / (lean.x + lean.y) : 0.5;
+    vec2 fraction = exp(log(share) * vec2(split, 1.0 - split));
+    vec2 half_size = 0.5 * size * fraction, mid = clamp(centre, p0 + half_size, p1 - half_size);
     p0 = mid - half_size;
     p1 = mid + half_size;
     return true;
@@ -612,10 +623,13 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
 #endif
 #if REFIT != REFIT_NONE
     vec3 slope = vec3(0.0);
-    if (l > 0 && !refit(p, layer, l, c, z, p0, p1, slope)) return false;
+    vec2 centre;
+    if (l > 0 && !refit(p, layer, l, c, z, p0, p1, slope, centre)) return false;
+#else
+    vec2 centre = 0.5 * (p0 + p1);
 #endif
 #if COVERAGE
-    if (l > 0 && !cover(p, layer, l, c, p0, p1)) return false;
+    if (l > 0 && !cover(p, layer, l, c, centre, p0, p1)) return false;
 #endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
@@ -655,10 +669,13 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
 #endif
 #if REFIT != REFIT_NONE
     vec3 slope = vec3(0.0);
-    if (l > 0 && !refit(p, layer, l, c, z, p0, p1, slope)) return false;
+    vec2 centre;
+    if (l > 0 && !refit(p, layer, l, c, z, p0, p1, slope, centre)) return false;
+#else
+    vec2 centre = 0.5 * (p0 + p1);
 #endif
 #if COVERAGE
-    if (l > 0 && !cover(p, layer, l, c, p0, p1)) return false;
+    if (l > 0 && !cover(p, layer, l, c, centre, p0, p1)) return false;
 #endif
     vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
     a = backproject(p, w0, z);
