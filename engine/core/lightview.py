@@ -712,14 +712,15 @@ def _in_front_of_any(points: np.ndarray, normals: np.ndarray, offsets: np.ndarra
     return front
 
 
-def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int | None:
+def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096, bounds=None) -> int | None:
     """A closed caster among `casters` (object indices), seen by the camera, with the camera's whole near plane
     on one side of it and `light` wholly on the other, or None. Every point the camera sees then lies on the
     camera's side (the caster stops every camera ray that would cross it), and every path from there to any
     point of the light crosses it: the light reaches none of the visible receivers (a room or a huge ball
     around the camera lit from outside, a lamp inside a closed box seen from outside). A convex caster of up
     to `max_faces` faces around the camera is decided by its face planes; any other case by the side of a
-    ball around the near plane and one around the light (solids.ball_inside); a sun lies outside them all."""
+    ball around the near plane and one around the light (solids.ball_inside); a sun lies outside them all.
+    `bounds`: snap.object_bounds() where the caller has them (a pass over every triangle)."""
     cam = snap.camera
     ndc = np.array([[x, y, -1.0, 1.0] for x in (-1.0, 1.0) for y in (-1.0, 1.0)])
     near = ndc @ np.linalg.inv(np.asarray(cam.projection, float) @ np.asarray(cam.view, float)).T
@@ -729,7 +730,7 @@ def enclosing_shell(snap, light: Light, casters, max_faces: int = 4096) -> int |
     # The shell must stop the camera's rays too: one the camera sees through (visible_camera off) may hold
     # the camera while the receivers it sees lie outside, lit.
     wanted = set(int(i) for i in casters if snap.objects[int(i)].receiver)
-    bounds = snap.object_bounds()
+    bounds = snap.object_bounds() if bounds is None else np.asarray(bounds, float)
     for index, (normals, offsets) in snap.convex_objects(max_faces, around=near, bounds=bounds).items():
         if index not in wanted:
             continue

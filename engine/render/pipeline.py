@@ -139,7 +139,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             # receiver to the light crosses it, so nothing is lit, whatever the light's size. Decided here for
             # every technique: from inside, a wide light's rays leave through the shell's half turned away
             # from the light, which a map from the light holds in no single layer.
-            shell = lightview.enclosing_shell(snap, light, caster_indices)
+            shell = lightview.enclosing_shell(snap, light, caster_indices, bounds=object_bounds)
             if shell is None:
                 casters = lightview.shadowing_caster_bounds(light, object_bounds, caster_objects, receivers, sides)
         rgb = None
