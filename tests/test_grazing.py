@@ -67,23 +67,52 @@ def test_reference_within_cycles_noise_on_grazing_scenes(name):
     assert m["mae_shadow"] <= floor["mae_shadow"] + 0.005
 
 
+# REFERENCE's default became 256 samples (its mae_shadow within Cycles-64's on the class scenes): twice its error
+# is now a tighter target than the 64 samples' that these tests were first measured against (96², 256 spp).
+NEAR_CONTACT_TWICE_REFERENCE_XFAIL = {
+    "tilted": "0.0203 against REFERENCE's 0.0082 at 256 samples (2.5×); twice its 0.014 at 64 samples held",
+    "slab": "0.0184 against REFERENCE's 0.0066 at 256 samples (2.8×); twice its 0.013 at 64 samples held",
+}
+
+
+@pytest.fixture(scope="module")
+def near_contact():
+    """(BACKPROJECTION's, REFERENCE's and Cycles-16's mae_shadow) per scene, rendered once for both tests."""
+    out = {}
+
+    def scores(name):
+        if name not in out:
+            sc, snap, ref = _setup(name)
+            ours = metrics.compare(_visibility(snap, "BACKPROJECTION"), ref.visibility, ref.mask)["mae_shadow"]
+            best = metrics.compare(_visibility(snap, "REFERENCE"), ref.visibility, ref.mask)["mae_shadow"]
+            c16 = reference.cycles_visibility(sc, samples=16, seed=3)
+            cycles16 = metrics.compare(c16.visibility, ref.visibility, ref.mask)["mae_shadow"]
+            print(name, "BACKPROJECTION", ours, "Cycles-16", cycles16, "REFERENCE", best)
+            out[name] = ours, best, cycles16
+        return out[name]
+    return scores
+
+
 @pytest.mark.parametrize("name", ["tilted", "slab", "contact"])
-def test_backprojection_next_to_contacts_within_cycles_16_and_twice_reference(name):
+def test_backprojection_next_to_contacts_within_cycles_16(near_contact, name):
     """Receivers next to their casters: a ball on a tilted floor, a wall's foot lit nearly edge-on, a ball and
     a wall on the ground. There BACKPROJECTION's coarse micro-occluders sit close to the
     receiver, where 1/(d − z) magnifies their approximation (one depth, one box) into the penumbra. With the
     plane refit, the centre clip and the near-field split (the defaults) it must stay at or below Cycles at
-    16 spp and within twice REFERENCE's mae_shadow (issue 10). At 96², before (MEAN refit, no split) → after:
-    tilted 0.043 → 0.026 (Cycles-16 0.031, REFERENCE 0.014), slab 0.062 → 0.022 (0.031, 0.013), contact
-    0.024 → 0.019 (0.030, 0.011). (Suzanne: 0.036 → 0.025, under Cycles-16's 0.032 but not within twice
-    REFERENCE's 0.012.)"""
-    sc, snap, ref = _setup(name)
-    ours = metrics.compare(_visibility(snap, "BACKPROJECTION"), ref.visibility, ref.mask)["mae_shadow"]
-    best = metrics.compare(_visibility(snap, "REFERENCE"), ref.visibility, ref.mask)["mae_shadow"]
-    c16 = reference.cycles_visibility(sc, samples=16, seed=3)
-    cycles16 = metrics.compare(c16.visibility, ref.visibility, ref.mask)["mae_shadow"]
-    print(name, "BACKPROJECTION", ours, "Cycles-16", cycles16, "REFERENCE", best)
+    16 spp (issue 11). At 96², before (MEAN refit, no split) → after:
+    tilted 0.043 → 0.026 (Cycles-16 0.031), slab 0.062 → 0.022 (0.031), contact 0.024 → 0.019 (0.030); with
+    the split at 0.15 and the coverage shrink towards the occluding parts: 0.020, 0.018, 0.015."""
+    ours, _, cycles16 = near_contact(name)
     assert ours <= cycles16
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=[pytest.mark.xfail(strict=True, reason=NEAR_CONTACT_TWICE_REFERENCE_XFAIL[n])]
+                 if n in NEAR_CONTACT_TWICE_REFERENCE_XFAIL else []) for n in ("tilted", "slab", "contact")])
+def test_backprojection_next_to_contacts_within_twice_reference(near_contact, name):
+    """The same scenes within twice REFERENCE's mae_shadow (issue 10). (Suzanne: 0.025, not within twice
+    REFERENCE's 0.012 at 64 samples either.)"""
+    ours, best, _ = near_contact(name)
     assert ours <= 2.0 * best
 
 
@@ -172,8 +201,16 @@ def test_flat_shaded_bent_faces_are_lit_as_cycles_lights_them():
 
 
 # Issue 10's target for the grazing and tilted classes: the soft techniques within twice REFERENCE's mae_shadow.
-# Where a technique misses it the xfail names the cause and the measured figures (96², Cycles 256 spp).
+# Where a technique misses it the xfail names the cause and the measured figures (96², Cycles 256 spp). Against
+# REFERENCE at its default 256 samples; the 64 samples it had when most of these were measured erred about
+# twice as much (0.011-0.014), and within twice that PCSS and BACKPROJECTION held on grazing and tilted.
+_AGAINST_256 = "REFERENCE at 256 samples: {} against its {} ({}×); within twice its error at 64 samples"
 TWICE_REFERENCE_XFAIL = {
+    ("grazing", "PCSS"): _AGAINST_256.format("0.0187", "0.0063", "3.0"),
+    ("grazing", "BACKPROJECTION"): _AGAINST_256.format("0.0200", "0.0063", "3.2"),
+    ("tilted", "PCSS"): _AGAINST_256.format("0.0191", "0.0082", "2.3"),
+    ("tilted", "BACKPROJECTION"): _AGAINST_256.format("0.0203", "0.0082", "2.5"),
+    ("slab", "BACKPROJECTION"): _AGAINST_256.format("0.0184", "0.0066", "2.8"),
     ("cube", "PCSS"): "the penumbra is wider than the blocker search's reach (pcss_max_radius, 0.1 of the map): "
                       "blockers beyond it go unseen and the mean blocker depth comes out wrong. 0.048 against "
                       "REFERENCE's 0.011 (0.089 with the filter capped at the search's reach too; 0.016 with both "
