@@ -85,15 +85,15 @@ def test_compute_scatter_equals_raster_scatter():
 
 def test_compute_scatter_of_patches_wider_than_the_loop_limit_equals_raster_scatter():
     """A light 10× the occluder, 1 m below it over a floor 2 m further: every patch's rectangle covers the
-    whole 512² map (262k texels), more than llvmpipe runs loop iterations in one invocation (65535).
-    (ssm_budget raised so that the map stays 512².) Unsplit, each patch stopped after its first 65535
-    texels: the far rows of the map missed all their shadow (|compute − raster| up to 0.093, all of it).
-    Split over dispatches the compute scatter adds every texel."""
+    whole 384² map (147k texels), more than llvmpipe runs loop iterations in one invocation (65535).
+    (ssm_budget raised so that the map stays 384².) Unsplit, each patch stopped after its first 65535
+    texels: the far rows of the map missed all their shadow (at 512²: |compute − raster| up to 0.093, all
+    of it). Split over dispatches the compute scatter adds every texel."""
     from dataclasses import replace
     from penumbra.engine.measure import stress
     snap = replace(stress.plane_scene(occluder_height=2.0, light_size=10.0), camera=stress.camera(size=24))
-    a = pipeline.render(snap, _ssm(ssm_map_size=512, ssm_budget=1e4, ssm_scatter="RASTER")).passes["Visibility"]
-    r = pipeline.render(snap, _ssm(ssm_map_size=512, ssm_budget=1e4, ssm_scatter="COMPUTE", collect_stats=True))
+    a = pipeline.render(snap, _ssm(ssm_map_size=384, ssm_budget=1e4, ssm_scatter="RASTER")).passes["Visibility"]
+    r = pipeline.render(snap, _ssm(ssm_map_size=384, ssm_budget=1e4, ssm_scatter="COMPUTE", collect_stats=True))
     assert r.stats["ssm_scatter_dispatches"] > 4
     assert a.min() < 0.95 and np.abs(a - r.passes["Visibility"]).max() < 1e-3     # shadow 0.09 deep
 
