@@ -23,8 +23,8 @@ def _ball_on_floor(light_x: float) -> dict:
 @pytest.mark.parametrize("light_x", [0.0, 1.0], ids=["overhead", "to_the_side"])
 def test_ball_on_a_floor_within_twice_reference(light_x):
     """Issue 10's target for the soft techniques, twice REFERENCE's mae_shadow, with REFERENCE at the 64 samples
-    it was measured with (at its default 256 REFERENCE's error is lower and PCSS misses twice it: see the
-    README's known limits). Measured at 64², Cycles 1024 spp:
+    it was measured with (at its default 256 REFERENCE's error is lower and PCSS misses twice it: the
+    xfails of tests/test_grazing.py's TWICE_REFERENCE_XFAIL). Measured at 64², Cycles 1024 spp:
     overhead REFERENCE 0.0196, PCSS 0.055 with the near side, 0.027 with the midpoint; light 1 m to the side
     REFERENCE 0.0178, PCSS 0.064 and 0.026. (A box's outline from above is its top, which the midpoint moves
     down: the same scene with a cube, 0.055 → 0.060 against REFERENCE's 0.012, PCSS's known limit there.)"""

@@ -26,12 +26,7 @@ RES = (64, 64)
 SPP = 256
 
 
-def _object(name, primitive, location, scale, rotation=(0.0, 0.0, 0.0), transform="plain"):
-    return fuzz.hand_object(name, primitive, location, scale, rotation, transform=transform)
-
-
-def _light(name, kind, location, target, energy, **shape):
-    return fuzz.hand_light(name, kind, location, target, energy, **shape)
+_object, _light = fuzz.hand_object, fuzz.hand_light
 
 
 def _camera(location, target, lens=24.0, inside=None):
