@@ -22,7 +22,8 @@ HSM). Per pixel, in glsl/backprojection/visibility.comp:
   the count, mean, maximum and variance of their depths (structures/coverage.py, the microrects' members), so
   that bars finer than a coarse cell with gaps between them do not fuse into an umbra; and (bp_split, ours)
   split into its finer parts, down to level 0, while it backprojects wider than a share of the light (next to
-  contacts);
+  contacts), as is a coarse cell whose nearest texel lies on the receiver's own plane while its mean depth is
+  nearer than that plane (a floor in front of a post's foot hiding the foot from the cell's test);
 * post-filtering of the bitmask visibility driven by the area values (§3.1, glsl/backprojection/filter.comp);
 * depth peeling from the light centre, 1–4 layers (§3.2), all OR-ed into the same bitmask;
 * round lights (disk, ellipse, point/spot radius, sun) through the sample mask; textured lights (§3.3) through
@@ -279,7 +280,9 @@ class Backprojection(Technique):
                "backprojection is wider than this share of the light's side are replaced by their finer parts, "
                "down to level 0: next to the receiver (contact shadows, a surface beside it) one coarse cell "
                "spans much of the light and its error becomes the penumbra's (tilted at 128²: mae_shadow 0.029 "
-               "with 0, 0.019 with 0.15); 0: off, the papers (not in them)",
+               "with 0, 0.019 with 0.15). With coarse coverage on, a cell whose nearest texel lies on the "
+               "receiver's plane but whose mean depth is nearer than it splits too (grazing at 128²: 0.019 → "
+               "0.015). 0: off, the papers (not in them)",
                min=0.0, max=4.0),
         Option("bp_force_level", -1, "Forced level", "−1: from the budget; ≥ 0: every pixel gathers at this "
                "hierarchy level (for studies of coarse-level occluder approximations)", min=-1, max=16),

@@ -543,6 +543,24 @@ bool cover(Pixel p, int layer, int l, ivec2 c, vec2 centre, inout vec2 p0, inout
 }
 #endif
 
+#if SPLIT && COVERAGE
+// Hidden occluders (ours). A coarse cell is tested at its nearest texel; when that texel lies on the
+// receiver's own plane (the floor in front of a post's foot, seen from a light low over it: the floor comes
+// nearer to the light than the post), the cell fails cell_occludes although the texels behind it, above the
+// plane where they are, do occlude, and the post's foot leaks light (grazing at 128²: V 0.42 right behind
+// the post, Cycles 0). Such a cell is left to the near-field split, which tests its parts one by one. A cell
+// of the plane alone is told apart by its texels' mean depth (coverage statistics), which lies on the plane
+// at the cell's middle; occluders above the plane pull the mean nearer. Only a cell nearer than the plane's
+// deepest point in it can hold any occluder at all.
+bool hides_occluders(Pixel p, int layer, int l, ivec2 c, float z, vec2 p0, vec2 p1) {
+    if (l == 0 || !(z < EMPTY_DEPTH) || !(z < p.d * (1.0 - SELF_GAP))) return false;
+    vec2 deepest = mix(p0, p1, vec2(greaterThan(p.r.normal.xy, vec2(0.0))));  // receiver_depth_min's far corner
+    if (!(z < receiver_depth_at(p.r, deepest))) return false;
+    vec4 s = cov_fetch(layer, l, c);
+    return s.g > 0.0 && s.r < receiver_depth_at(p.r, 0.5 * (p0 + p1));
+}
+#endif
+
 vec2 window_at(Pixel p, vec2 pos) {
     return u_light_window.xz + pos * p.tex;
 }
@@ -610,17 +628,23 @@ void clear_centre(Pixel p, vec2 p0, vec2 p1, inout vec2 a, inout vec2 b) {
 // Micropatch of cell c (level l): the cell's square at its (minimum) depth, parallel to the light. Gap
 // filling (GBP06): when the left (bottom) neighbour is an occluder too, the patch's left (bottom) edge is
 // extended to where that neighbour's right (top) edge backprojects, closing the gap between them. False
-// when the cell occludes nothing; else its light rectangle [a, b] and occluded fraction `area`, and (SPLIT)
+// when the cell occludes nothing (with `area` < 0 where it may hide occluders all the same, for the split to
+// look inside: hides_occluders); else its light rectangle [a, b] and occluded fraction `area`, and (SPLIT)
 // `whole`, the light rectangle of the whole cell before the refit and coverage shrink it (the split's test).
 bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
     float s = float(1 << l);
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
-    if (!cell_occludes(p, z, p0, p1, l)) return false;
 #if SPLIT
     whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
 #endif
+    if (!cell_occludes(p, z, p0, p1, l)) {
+#if SPLIT && COVERAGE
+        if (hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
+#endif
+        return false;
+    }
 #if REFIT != REFIT_NONE
     vec3 slope = vec3(0.0);
     vec2 centre;
@@ -663,10 +687,15 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     float z = rect_depth(layer, l, c, ext);
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
-    if (!cell_occludes(p, z, p0, p1, l)) return false;
 #if SPLIT
     whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
 #endif
+    if (!cell_occludes(p, z, p0, p1, l)) {
+#if SPLIT && COVERAGE
+        if (hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
+#endif
+        return false;
+    }
 #if REFIT != REFIT_NONE
     vec3 slope = vec3(0.0);
     vec2 centre;
@@ -953,9 +982,11 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
         // whose cells are k = l − f halvings smaller, enough to bring it under u_split of the light's side:
         // micropatches the 2^k × 2^k cells of level f inside it, microrects the level-f microrects whose
         // reference texel lies in its extent (level 0: exactly its texels). One flat loop, no stack (a local
-        // array made every gather ~5× slower on llvmpipe); u_split_extra caps the parts per gather.
+        // array made every gather ~5× slower on llvmpipe); u_split_extra caps the parts per gather. A cell
+        // that may hide occluders behind the receiver's plane (area < 0, hides_occluders) splits the same way.
         int k = 0;
-        if (hit && l > 0 && all(lessThan(whole.xy, vec2(1.0))) && all(greaterThan(whole.zw, vec2(-1.0)))) {
+        if ((hit || area < 0.0) && l > 0 && all(lessThan(whole.xy, vec2(1.0)))
+            && all(greaterThan(whole.zw, vec2(-1.0)))) {
             float wide = max(whole.z - whole.x, whole.w - whole.y) / (2.0 * u_split);
             k = wide > 1.0 ? min(int(ceil(log2(wide))), l) : 0;
         }
