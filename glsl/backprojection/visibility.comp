@@ -439,10 +439,11 @@ vec2 near_cluster(vec4 s, float d) {
 // parts that occlude at their own depth are kept: the extent shrinks to their bounding box (within
 // [p0, p1)), the depth becomes their minimum (REFIT_EXTENT: still no deeper than any occluding texel) or their
 // mean (REFIT_MEAN: the deeper texels no longer lifted to the nearest; with coverage on, each part counts at
-// the mean depth of its own occluding texels); REFIT_DEPTH keeps the extent and takes only the mean depth. The parts: a micropatch's 2×2 cells of level l − 1; a microrect's level-(l − 1)
-// microrects among 2c + {−1, 0, 1}² whose reference point (level-0 texel j·2^(l−1)) lies in its extent,
-// which holds every microrect merged into it (each holds its own reference point, and the merge unites
-// extents), clipped to that extent. REFIT_PLANE is REFIT_MEAN plus the parts' depth slope (see
+// the mean depth of its own occluding texels); REFIT_DEPTH keeps the extent and takes only the mean depth.
+// The parts: a micropatch's 2×2 cells of level l − 1; a microrect's level-(l − 1) microrects among
+// 2c + {−1, 0, 1}² whose reference point (level-0 texel j·2^(l−1)) lies in its extent, which holds every
+// microrect merged into it (each holds its own reference point, and the merge unites extents), clipped to
+// that extent. REFIT_PLANE is REFIT_MEAN plus the parts' depth slope (see
 // backproject_tilted), returned in `slope` (depth per level-0 texel in x and y, and the parts' nearest depth;
 // zero slope for the other refits). False: no part occludes.
 #if PRIMITIVE == PRIMITIVE_MICRORECT
@@ -514,7 +515,6 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
 
 
 #if COVERAGE
-
 // Coverage (ours): a coarse micro-occluder stands for all the texels of its cell (micropatch) or of its
 // members (microrect), but only those nearer than the receiver occlude it: bars thinner than a cell (fences,
 // grids) or a cell astride the receiver's own surface would otherwise block the whole backprojected box. Its
@@ -1004,7 +1004,8 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
         // micropatches the 2^k × 2^k cells of level f inside it, microrects the level-f microrects whose
         // reference texel lies in its extent (level 0: exactly its texels). One flat loop, no stack (a local
         // array made every gather ~5× slower on llvmpipe); u_split_extra caps the parts per gather. A cell
-        // that may hide occluders behind the receiver's plane (area < 0, hides_occluders) splits the same way.
+        // whose nearest texel lies on the receiver's plane but that may hide occluders (area < 0,
+        // hides_occluders) splits the same way.
         int k = 0;
         if ((hit || area < 0.0) && l > 0 && all(lessThan(whole.xy, vec2(1.0)))
             && all(greaterThan(whole.zw, vec2(-1.0)))) {
