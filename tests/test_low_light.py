@@ -4,13 +4,14 @@ Seen from a light a few degrees above the floor, the floor in front of an object
 than the foot itself. A coarse micro-occluder of BACKPROJECTION holding both is tested at its nearest texel,
 the floor, which lies on the receiver's own plane: before such cells were split (visibility.comp,
 hides_occluders) the foot's texels in them were lost and the ground right behind a post came out half lit
-(V 0.4 where Cycles has 0). A post and a ball under a 2 m square light 15 m away, at three elevations and
-azimuths; 64², Cycles 1024 spp (cached on disk)."""
+(the built-in `grazing`: V 0.42 where Cycles has 0). A post and a ball under a 2 m square light 15 m away, at two elevations and
+azimuths; 64², Cycles 1024 spp (cached on disk). (At 7° and 20°: REFERENCE 0.0032, BACKPROJECTION 0.0094
+before, 0.0084 after; left out to keep the test run short.)"""
 import math
 
 import pytest
 
-ELEVATIONS = [(4.0, 0.0), (7.0, 20.0), (12.0, -25.0)]        # degrees above the floor, degrees about Z
+ELEVATIONS = [(4.0, 0.0), (12.0, -25.0)]        # degrees above the floor, degrees about Z
 
 
 def _post_and_ball(elevation: float, azimuth: float) -> dict:
@@ -44,8 +45,7 @@ def errors():
 @pytest.mark.parametrize("key", ELEVATIONS, ids=[f"{e:g}deg" for e, _ in ELEVATIONS])
 def test_backprojection_keeps_the_foot_of_objects_under_a_low_light(errors, key):
     """Within three times REFERENCE's error (REFERENCE at 256 samples). Before the split looked inside such
-    cells: 0.033 against REFERENCE's 0.0056 at 4° (5.9×); with it 0.0118 (2.1×), 7° 0.0084 (2.6×), 12° 0.0059
-    (1.8×)."""
+    cells: 0.033 against REFERENCE's 0.0056 at 4° (5.9×); with it 0.0118 (2.1×), 12° 0.0059 (1.8×)."""
     e = errors(key)
     assert e["BACKPROJECTION"] <= 3.0 * e["REFERENCE"]
 
@@ -53,7 +53,6 @@ def test_backprojection_keeps_the_foot_of_objects_under_a_low_light(errors, key)
 TWICE_XFAIL = {
     (4.0, 0.0): "0.0118 against REFERENCE's 0.0056 (2.1×): the ball's long shadow too dark along its edges (up to "
                 "0.11 darker than Cycles), where coarse micro-occluders of its flank stand for a rounded outline",
-    (7.0, 20.0): "0.0084 against REFERENCE's 0.0032 (2.6×): as at 4°, the ball's shadow too dark along its edges",
 }
 
 
