@@ -4,9 +4,9 @@ Seen from a light a few degrees above the floor, the floor in front of an object
 than the foot itself. A coarse micro-occluder of BACKPROJECTION holding both is tested at its nearest texel,
 the floor, which lies on the receiver's own plane: before such cells were split (visibility.comp,
 hides_occluders) the foot's texels in them were lost and the ground right behind a post came out half lit
-(the built-in `grazing`: V 0.42 where Cycles has 0). A post and a ball under a 2 m square light 15 m away, at two elevations and
-azimuths; 64², Cycles 1024 spp (cached on disk). (At 7° and 20°: REFERENCE 0.0032, BACKPROJECTION 0.0094
-before, 0.0084 after; left out to keep the test run short.)"""
+(the built-in `grazing`: V 0.42 where Cycles has 0). A post and a ball under a 2 m square light 15 m away,
+at two elevations and azimuths; 64², Cycles 1024 spp (cached on disk). (At 7° and 20°: REFERENCE 0.0032,
+BACKPROJECTION 0.0094 before, 0.0084 after; left out to keep the test run short.)"""
 import math
 
 import pytest
