@@ -394,11 +394,21 @@ float receiver_depth_min(Pixel p, vec2 p0, vec2 p1) {
     return receiver_depth_at(p.r, mix(p1, p0, vec2(greaterThan(p.r.normal.xy, vec2(0.0)))));
 }
 
+// Its deepest depth over [p0, p1]: the opposite corner.
+float receiver_depth_max(Pixel p, vec2 p0, vec2 p1) {
+    return receiver_depth_at(p.r, mix(p0, p1, vec2(greaterThan(p.r.normal.xy, vec2(0.0)))));
+}
+
+// A stored depth that is a surface nearer than the receiver (the first test of every micro-occluder).
+bool before_receiver(Pixel p, float z) {
+    return z < EMPTY_DEPTH && z < p.d * (1.0 - SELF_GAP);
+}
+
 // A coarse cell (level > 0) holds the minimum depth of its 2^l × 2^l texels; the receiver's own plane
 // inside it reaches as near as its nearest corner (1/z is linear over the window), so compare there, or a
 // tilted receiver shadows itself from coarse levels (the acne §4 warns about).
 bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
-    if (!(z < EMPTY_DEPTH) || !(z < p.d * (1.0 - SELF_GAP))) return false;
+    if (!before_receiver(p, z)) return false;
     if (l == 0) return z < receiver_depth_at(p.r, 0.5 * (p0 + p1));
     return z < receiver_depth_min(p, p0, p1);
 }
@@ -473,7 +483,9 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
         if (any(greaterThanEqual(q0, p1))) continue;
         float zc = cell_depth(layer, f, j);
 #endif
-        if (!cell_occludes(p, zc, q0, q1, f)) continue;
+        // cell_occludes, keeping the receiver's depth over a coarse part for its coverage below.
+        float dq = f > 0 ? min(receiver_depth_min(p, q0, q1), p.d * (1.0 - SELF_GAP)) : 0.0;
+        if (f > 0 ? !(zc < EMPTY_DEPTH && zc < dq) : !cell_occludes(p, zc, q0, q1, 0)) continue;
         lo = min(lo, q0);
         hi = max(hi, q1);
         zmin = min(zmin, zc);
@@ -483,10 +495,12 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
         // their minimum. The minimum lies on the part's edge nearest the light: on a surface the light meets
         // at a slant (a ball's flank) every part's minimum sits half a part towards the light, and the plate
         // through them stands that far in front of the surface, too small on the light: the inner penumbra
-        // next to a ball came out light (tilted at 128²: mae_shadow 0.0187, 0.0138 with the means).
-        float dq = min(receiver_depth_min(p, q0, q1), p.d * (1.0 - SELF_GAP));
-        vec2 near = near_cluster(cov_fetch(layer, f, j), dq);
-        if (near.x > 1e-3) zpart = clamp(near.y, zc, max(dq, zc));
+        // next to a ball came out light (tilted at 128²: mae_shadow 0.0187, 0.0138 with the means). A level-0
+        // part is one texel: its own mean.
+        if (f > 0) {
+            vec2 near = near_cluster(cov_fetch(layer, f, j), dq);
+            if (near.x > 1e-3) zpart = clamp(near.y, zc, max(dq, zc));
+        }
 #endif
         zsum += zpart;
         n += 1.0;
@@ -574,9 +588,7 @@ bool cover(Pixel p, int layer, int l, ivec2 c, vec2 centre, inout vec2 p0, inout
 // at the cell's middle; occluders above the plane pull the mean nearer. Only a cell nearer than the plane's
 // deepest point in it can hold any occluder at all.
 bool hides_occluders(Pixel p, int layer, int l, ivec2 c, float z, vec2 p0, vec2 p1) {
-    if (l == 0 || !(z < EMPTY_DEPTH) || !(z < p.d * (1.0 - SELF_GAP))) return false;
-    vec2 deepest = mix(p0, p1, vec2(greaterThan(p.r.normal.xy, vec2(0.0))));  // receiver_depth_min's far corner
-    if (!(z < receiver_depth_at(p.r, deepest))) return false;
+    if (l == 0 || !before_receiver(p, z) || !(z < receiver_depth_max(p, p0, p1))) return false;
     vec4 s = cov_fetch(layer, l, c);
     return s.g > 0.0 && s.r < receiver_depth_at(p.r, 0.5 * (p0 + p1));
 }
@@ -657,15 +669,15 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
-#if SPLIT
-    whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
-#endif
-    if (!cell_occludes(p, z, p0, p1, l)) {
+    bool occludes = cell_occludes(p, z, p0, p1, l);
 #if SPLIT && COVERAGE
-        if (hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
+    if (!occludes && hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
 #endif
-        return false;
-    }
+#if SPLIT
+    if (occludes || area < 0.0)
+        whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
+#endif
+    if (!occludes) return false;
 #if REFIT != REFIT_NONE
     vec3 slope = vec3(0.0);
     vec2 centre;
@@ -708,15 +720,15 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     float z = rect_depth(layer, l, c, ext);
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
-#if SPLIT
-    whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
-#endif
-    if (!cell_occludes(p, z, p0, p1, l)) {
+    bool occludes = cell_occludes(p, z, p0, p1, l);
 #if SPLIT && COVERAGE
-        if (hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
+    if (!occludes && hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
 #endif
-        return false;
-    }
+#if SPLIT
+    if (occludes || area < 0.0)
+        whole = vec4(backproject(p, window_at(p, p0), z), backproject(p, window_at(p, p1), z));
+#endif
+    if (!occludes) return false;
 #if REFIT != REFIT_NONE
     vec3 slope = vec3(0.0);
     vec2 centre;
