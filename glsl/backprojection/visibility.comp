@@ -671,7 +671,9 @@ void clear_centre(Pixel p, vec2 p0, vec2 p1, inout vec2 a, inout vec2 b) {
 // when the cell occludes nothing (with `area` < 0 where it may hide occluders all the same, for the split to
 // look inside: hides_occluders); else its light rectangle [a, b] and occluded fraction `area`, and (SPLIT)
 // `whole`, the light rectangle of the whole cell before the refit and coverage shrink it (the split's test).
-bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
+// `fill`: whether gap filling applies (see gather_range: not to a split's coarse parts).
+bool micropatch(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out vec2 b, out float area,
+                out vec4 whole) {
     float s = float(1 << l);
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
@@ -702,12 +704,14 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
     if (l > 0) backproject_tilted(p, p0, p1, z, slope, a, b);
 #endif
 #if GAP_FILL
-    float zl = cell_depth(layer, l, c - ivec2(1, 0));
-    if (cell_occludes(p, zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
-        a.x = min(a.x, backproject(p, w0, zl).x);
-    float zb = cell_depth(layer, l, c - ivec2(0, 1));
-    if (cell_occludes(p, zb, p0 - vec2(0.0, s), vec2(p1.x, p0.y), l))
-        a.y = min(a.y, backproject(p, w0, zb).y);
+    if (fill) {
+        float zl = cell_depth(layer, l, c - ivec2(1, 0));
+        if (cell_occludes(p, zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
+            a.x = min(a.x, backproject(p, w0, zl).x);
+        float zb = cell_depth(layer, l, c - ivec2(0, 1));
+        if (cell_occludes(p, zb, p0 - vec2(0.0, s), vec2(p1.x, p0.y), l))
+            a.y = min(a.y, backproject(p, w0, zb).y);
+    }
 #endif
 #if REFIT != REFIT_NONE
     if (l > 0) clear_centre(p, p0, p1, a, b);
@@ -722,7 +726,8 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out 
 // Microrect of texel c (level l, §5.2): a micropatch over its own extent at its (minimum) depth; gap filling
 // as for micropatches, towards the left/bottom neighbour microrect when its extent reaches this one's. At
 // level 0 extent and depth are the texel's own, so this is exactly micropatch().
-bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out float area, out vec4 whole) {
+bool microrect(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out vec2 b, out float area,
+               out vec4 whole) {
     vec4 ext;
     float z = rect_depth(layer, l, c, ext);
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
@@ -753,13 +758,15 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
     if (l > 0) backproject_tilted(p, p0, p1, z, slope, a, b);
 #endif
 #if GAP_FILL
-    vec4 el, eb;
-    float zl = rect_depth(layer, l, c - ivec2(1, 0), el);
-    if (el.z >= p0.x && cell_occludes(p, zl, el.xy, min(el.zw, vec2(u_map_size)), l))
-        a.x = min(a.x, backproject(p, w0, zl).x);
-    float zb = rect_depth(layer, l, c - ivec2(0, 1), eb);
-    if (eb.w >= p0.y && cell_occludes(p, zb, eb.xy, min(eb.zw, vec2(u_map_size)), l))
-        a.y = min(a.y, backproject(p, w0, zb).y);
+    if (fill) {
+        vec4 el, eb;
+        float zl = rect_depth(layer, l, c - ivec2(1, 0), el);
+        if (el.z >= p0.x && cell_occludes(p, zl, el.xy, min(el.zw, vec2(u_map_size)), l))
+            a.x = min(a.x, backproject(p, w0, zl).x);
+        float zb = rect_depth(layer, l, c - ivec2(0, 1), eb);
+        if (eb.w >= p0.y && cell_occludes(p, zb, eb.xy, min(eb.zw, vec2(u_map_size)), l))
+            a.y = min(a.y, backproject(p, w0, zb).y);
+    }
 #endif
 #if REFIT != REFIT_NONE
     if (l > 0) clear_centre(p, p0, p1, a, b);
@@ -1007,9 +1014,9 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
         float area;
         vec4 whole;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
-        bool hit = micropatch(p, layer, l, c, a, b, area, whole);
+        bool hit = micropatch(p, layer, l, c, true, a, b, area, whole);
 #elif PRIMITIVE == PRIMITIVE_MICRORECT
-        bool hit = microrect(p, layer, l, c, a, b, area, whole);
+        bool hit = microrect(p, layer, l, c, true, a, b, area, whole);
 #else
         bool hit = microquad(p, layer, l, c, a, b, area, whole);
 #endif
@@ -1054,12 +1061,20 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
             int nx = s1.x - s0.x + 1, parts = nx * (s1.y - s0.y + 1);
             extra -= parts * part_iterations(f);
             count += float(parts);
+            // The parts are gap-filled only at level 0. A coarse part, shrunk to its occluding share and
+            // tilted, no longer ends at its cell's edge, nor does its neighbour; next to the receiver, where
+            // the split works, filling towards the neighbour's edge at the neighbour's minimum depth covered
+            // light no part occludes (at 128², suzanne 0.0152 → 0.0136, balls 0.0173 → 0.0161, slab 0.0114 →
+            // 0.0105; grazing 0.0143 → 0.0145, no scene worse by more than 1.4 %). Unsplit coarse cells keep
+            // it: small on the light, their fills close the gaps between neighbours (without: light stripes
+            // across grazing's bar shadow, 0.0143 → 0.0169).
+            bool fill = f == 0;
             for (int q = 0; q < parts; ++q) {
                 ivec2 jq = s0 + ivec2(q % nx, q / nx);
 #if PRIMITIVE == PRIMITIVE_MICRORECT
-                bool h = microrect(p, layer, f, jq, a, b, area, whole);
+                bool h = microrect(p, layer, f, jq, fill, a, b, area, whole);
 #else
-                bool h = micropatch(p, layer, f, jq, a, b, area, whole);
+                bool h = micropatch(p, layer, f, jq, fill, a, b, area, whole);
 #endif
                 if (h) ADD_OCCLUDER(o, a, b, area);
             }
