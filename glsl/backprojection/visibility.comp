@@ -399,18 +399,28 @@ float receiver_depth_max(Pixel p, vec2 p0, vec2 p1) {
     return receiver_depth_at(p.r, mix(p0, p1, vec2(greaterThan(p.r.normal.xy, vec2(0.0)))));
 }
 
+// A stored depth that is a surface (not empty) nearer than `bound`.
+bool surface_before(float z, float bound) {
+    return z < EMPTY_DEPTH && z < bound;
+}
+
 // A stored depth that is a surface nearer than the receiver (the first test of every micro-occluder).
 bool before_receiver(Pixel p, float z) {
-    return z < EMPTY_DEPTH && z < p.d * (1.0 - SELF_GAP);
+    return surface_before(z, p.d * (1.0 - SELF_GAP));
+}
+
+// The depth a coarse cell's texels over [p0, p1] must lie nearer than to occlude: the receiver's plane at its
+// nearest corner there, and never deeper than the receiver itself.
+float occluding_depth(Pixel p, vec2 p0, vec2 p1) {
+    return min(receiver_depth_min(p, p0, p1), p.d * (1.0 - SELF_GAP));
 }
 
 // A coarse cell (level > 0) holds the minimum depth of its 2^l × 2^l texels; the receiver's own plane
 // inside it reaches as near as its nearest corner (1/z is linear over the window), so compare there, or a
 // tilted receiver shadows itself from coarse levels (the acne §4 warns about).
 bool cell_occludes(Pixel p, float z, vec2 p0, vec2 p1, int l) {
-    if (!before_receiver(p, z)) return false;
-    if (l == 0) return z < receiver_depth_at(p.r, 0.5 * (p0 + p1));
-    return z < receiver_depth_min(p, p0, p1);
+    if (l == 0) return before_receiver(p, z) && z < receiver_depth_at(p.r, 0.5 * (p0 + p1));
+    return surface_before(z, occluding_depth(p, p0, p1));
 }
 
 #if COVERAGE
@@ -484,9 +494,9 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
         if (any(greaterThanEqual(q0, p1))) continue;
         float zc = cell_depth(layer, f, j);
 #endif
-        // cell_occludes, keeping the receiver's depth over a coarse part for its coverage below.
-        float dq = f > 0 ? min(receiver_depth_min(p, q0, q1), p.d * (1.0 - SELF_GAP)) : 0.0;
-        if (f > 0 ? !(zc < EMPTY_DEPTH && zc < dq) : !cell_occludes(p, zc, q0, q1, 0)) continue;
+        // cell_occludes, keeping a coarse part's occluding depth for its coverage below.
+        float dq = f > 0 ? occluding_depth(p, q0, q1) : 0.0;
+        if (f > 0 ? !surface_before(zc, dq) : !cell_occludes(p, zc, q0, q1, 0)) continue;
         lo = min(lo, q0);
         hi = max(hi, q1);
         zmin = min(zmin, zc);
@@ -553,7 +563,7 @@ bool refit(Pixel p, int layer, int l, ivec2 c, inout float z, inout vec2 p0, ino
 bool cover(Pixel p, int layer, int l, ivec2 c, vec2 centre, inout vec2 p0, inout vec2 p1) {
     vec4 s = cov_fetch(layer, l, c);       // mean, count, max, variance
     if (s.g <= 0.0) return false;
-    float d = min(receiver_depth_min(p, p0, p1), p.d * (1.0 - SELF_GAP));
+    float d = occluding_depth(p, p0, p1);
     float near = near_cluster(s, d).x;
     vec2 size = p1 - p0;
     float room = size.x * size.y;
