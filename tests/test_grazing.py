@@ -200,7 +200,6 @@ def test_flat_shaded_bent_faces_are_lit_as_cycles_lights_them():
 # twice as much (0.011-0.014), and within twice that PCSS and BACKPROJECTION held on grazing and tilted.
 _AGAINST_256 = "REFERENCE at 256 samples: {} against its {} ({}×); within twice its error at 64 samples"
 TWICE_REFERENCE_XFAIL = {
-    ("grazing", "BACKPROJECTION"): _AGAINST_256.format("0.0131", "0.0063", "2.1"),
     ("cube", "PCSS"): "the penumbra is wider than the blocker search's reach (pcss_max_radius, 0.1 of the map): "
                       "blockers beyond it go unseen and the mean blocker depth comes out wrong. 0.048 against "
                       "REFERENCE's 0.011 (0.089 with the filter capped at the search's reach too; 0.016 with both "

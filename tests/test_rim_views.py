@@ -116,11 +116,12 @@ def _xfail(reason):
 
 GATHER_AREA = ("over bound in the stand-in's view: the umbra behind the block fades down the slope where the floor "
                "sees the emitter's sliver edge-on")
-CASES = [("AREA", t) for t in ("HARD", "PCF", "PCSS", "SPSM", "PVSM")] + [
-    pytest.param("AREA", "BACKPROJECTION", marks=_xfail("BACKPROJECTION 0.61 -> 0.239 against 0.216: " + GATHER_AREA)),
+# BACKPROJECTION: 0.61 -> 0.239 under the area light and 0.64 -> 0.291 under the point light (over their bounds
+# of 0.216 and 0.220) before the solid columns (bp_solid_columns) let the block's far side shadow the floor
+# that sees the emitter edge-on; 0.146 and 0.193 with them.
+CASES = [("AREA", t) for t in ("HARD", "PCF", "PCSS", "SPSM", "PVSM", "BACKPROJECTION")] + [
     pytest.param("AREA", "SSM", marks=_xfail("SSM 0.44 -> 0.192 against 0.146: " + GATHER_AREA)),
-] + [("POINT", t) for t in ("HARD", "PCF", "PCSS", "SPSM", "PVSM")] + [
-    pytest.param("POINT", "BACKPROJECTION", marks=_xfail("BACKPROJECTION 0.64 -> 0.291 against 0.220: " + GATHER_AREA)),
+] + [("POINT", t) for t in ("HARD", "PCF", "PCSS", "SPSM", "PVSM", "BACKPROJECTION")] + [
     pytest.param("POINT", "SSM", marks=_xfail("SSM 0.44 -> 0.224 against 0.150: " + GATHER_AREA)),
 ]
 

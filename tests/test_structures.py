@@ -33,13 +33,13 @@ def _solids_over_ground(parts, closed=True):
 
 
 
-def _stacked_boxes():
+def _stacked_boxes(closed=True):
     """Three closed boxes over the ground, each hidden from the light's centre by the wider one above it: the
     depth map and two peeled layers all hold occluders. All wider than the light, so that no side face is lit
-    (one light view)."""
+    (one light view). `closed`: whether they are marked watertight."""
     from penumbra.engine.measure.stress import box
     return _solids_over_ground([box((-0.8, -0.8, 1.4), (0.8, 0.8, 1.5)), box((-0.7, -0.7, 1.0), (0.7, 0.7, 1.1)),
-                                box((-0.6, -0.6, 0.5), (0.6, 0.6, 0.6))])
+                                box((-0.6, -0.6, 0.5), (0.6, 0.6, 0.6))], closed=closed)
 
 def test_plan_puts_requirements_first_once_and_keeps_asked_parameters():
     order = structures.plan([need("hsm", mssm_first=True), need("peeled_layers", layers=3), "mssm"])
@@ -80,7 +80,7 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     # Micropatches read the hierarchy itself (the default microrects add their own structure, checked below).
     base = RenderSettings(technique="BACKPROJECTION", shadow_map_size=64).with_(bp_primitive="MICROPATCH")
     r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=3, bp_coverage=False))
-    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1}
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "solid_exits": 1}
     memory = r.stats["structure_bytes"]
     depth = memory["depth_map"]
     assert depth > 0
@@ -88,13 +88,13 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     assert memory["hsm"] > 3 * 2 * depth               # an RG32F pyramid (≥ 4/3 of a level) per layer
     calls.clear()
     r = pipeline.render(snap, base.with_(bp_refinement="MSSM", bp_coverage=False, bp_layers=1))
-    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "mssm": 1}
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "mssm": 1, "solid_exits": 1}
     memory = r.stats["structure_bytes"]
     assert memory["hsm"] == 0                          # layer 0 reads the MSSM, which holds every level
     assert memory["mssm"] >= 2 * memory["depth_map"] * 6    # RG32F, one full-resolution layer per level
     calls.clear()
     r = pipeline.render(snap, base.with_(bp_refinement="YSM", bp_primitive="MICRORECT", bp_layers=2))
-    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "ysm": 1, "microrects": 1}
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "ysm": 1, "microrects": 1, "solid_exits": 1}
     memory = r.stats["structure_bytes"]
     assert memory["hsm"] == 8 * (64 * 64 * 4 - 1) // 3     # layer 1's pyramid only: the YSM holds layer 0's
     assert memory["microrects"] == 2 * (4 + 16 + 16) * (64 * 64 * 4 - 1) // 3   # two layers, R32F + RGBA32F chains
@@ -106,11 +106,18 @@ def test_options_decide_the_structures_and_each_is_built_once_per_light_view(mon
     # Micropatches with coverage read one RGBA32F coverage pyramid per layer; microquads need none.
     calls.clear()
     r = pipeline.render(snap, base.with_(bp_refinement="HSM", bp_layers=2))
-    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "coverage": 1}
+    assert calls == {"depth_map": 1, "peeled_layers": 1, "hsm": 1, "coverage": 1, "solid_exits": 1}
     assert r.stats["structure_bytes"]["coverage"] == 2 * 16 * (64 * 64 * 4 - 1) // 3
     calls.clear()
     pipeline.render(snap, base.with_(bp_refinement="HSM", bp_primitive="MICROQUAD"))
-    assert "coverage" not in calls
+    assert "coverage" not in calls and "solid_exits" not in calls       # a microquad spans four texels
+    # The solid exits (bp_solid_columns): asked for by default, an RG32F pyramid where a caster is closed, nothing
+    # where none is; not asked for when off.
+    calls.clear()
+    pipeline.render(snap, base.with_(bp_refinement="HSM", bp_solid_columns=False))
+    assert "solid_exits" not in calls
+    assert pipeline.render(snap, base).stats["structure_bytes"]["solid_exits"] == 8 * (64 * 64 * 4 - 1) // 3
+    assert pipeline.render(_stacked_boxes(closed=False), base).stats["structure_bytes"]["solid_exits"] == 0
 
 
 def test_ssm_structures_follow_its_options(monkeypatch):

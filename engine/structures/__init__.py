@@ -91,4 +91,4 @@ def nbytes(obj) -> int:
     return resource_bytes(obj)
 
 
-from . import conservative_map, depth_map, peeled_layers, hsm, lit_umbra, mssm, microrects, coverage, ysm, ssm_maps, soft_shadow_map  # noqa: E402,F401  (register builders)
+from . import conservative_map, depth_map, peeled_layers, hsm, lit_umbra, mssm, microrects, coverage, ysm, ssm_maps, soft_shadow_map, solid_exits  # noqa: E402,F401  (register builders)

@@ -34,10 +34,11 @@ def chain_bytes(width: int, height: int, texel_bytes: int) -> int:
     return sum(max(pw >> l_, 1) * max(ph >> l_, 1) * texel_bytes for l_ in range(level_count(pw, ph)))
 
 
-def reduce_pyramid(frame, shader: str, depth, size, uniforms: dict, components: int = 2):
+def reduce_pyramid(frame, shader: str, depth, size, uniforms: dict, components: int = 2,
+                   samplers: dict | None = None):
     """A pyramid over the padded `size` (full mip chain, nearest filtering; RG32F min/max unless `components`
-    says otherwise), its level 0 filled from the R32F `depth` map by the compute `shader` and the rest by
-    mip_chain. Returns (texture, levels)."""
+    says otherwise), its level 0 filled from the R32F `depth` map (and any further `samplers`) by the compute
+    `shader` and the rest by mip_chain. Returns (texture, levels)."""
     pw, ph = size
     levels = level_count(pw, ph)
     tex = frame.texture((pw, ph), components)
@@ -46,6 +47,10 @@ def reduce_pyramid(frame, shader: str, depth, size, uniforms: dict, components: 
     prog = program(frame.worker, compute=shader)
     depth.use(location=0)
     set_uniforms(prog, {"u_depth": 0, **uniforms})
+    if samplers:
+        for unit, (name, source) in enumerate(samplers.items(), start=1):
+            source.use(location=unit)
+            set_uniforms(prog, {name: unit})
     mip_chain(frame, prog, [tex], (pw, ph), levels)
     return tex, levels
 

@@ -68,6 +68,9 @@
 #ifndef REFIT_ITERATIONS
 #define REFIT_ITERATIONS 0      // loop iterations the coarse refit costs a micro-occluder (see part_iterations)
 #endif
+#ifndef COLUMNS
+#define COLUMNS 0               // 1: micro-occluders of closed casters reach to the solid's exit (solid_column)
+#endif
 #ifndef CHUNKED
 #define CHUNKED 0               // 1: the gather is split over several dispatches (see gather_range)
 #endif
@@ -364,6 +367,41 @@ uint span_row(Span s, int l) {
     uint sel = ((l >= s.r0[0] && l < s.r1[0]) ? EVEN : 0u) | ((l >= s.r0[1] && l < s.r1[1]) ? ODD : 0u);
     return s.cols[l & 1] & sel;
 }
+
+// A rectangle swept linearly from [a0, b0] to [a1, b1] (light coordinates in [0, 1]; a solid column's
+// backprojection, solid_column): the union over t of [mix(a0, a1, t), mix(b0, b1, t)], which is the convex hull
+// of the two. Row l's samples of column parity q sit at one height y; the t for which the rectangle holds
+// that height form an interval (two linear bounds), and the row's x extent is the union of the rectangle's at
+// its two ends (each edge moves linearly in t).
+struct Sweep {
+    vec2 a0, b0, a1, b1;
+};
+
+// Clip [t.x, t.y] to where f0 + t·df ≤ 0.
+void clip_linear(float f0, float df, inout vec2 t) {
+    if (df > 0.0) t.y = min(t.y, -f0 / df);
+    else if (df < 0.0) t.x = max(t.x, -f0 / df);
+    else if (f0 > 0.0) t = vec2(1.0, 0.0);
+}
+
+uint sweep_row(Sweep s, int l) {
+    const uint PARITY[2] = uint[2](0x55555555u & ROW_MASK, 0xaaaaaaaau & ROW_MASK);
+    float N = float(BITS);
+    uint bits = 0u;
+    for (int q = 0; q < 2; ++q) {
+        float y = (float(l) + u_jitter_y[q]) / N;
+        vec2 t = vec2(0.0, 1.0);
+        clip_linear(s.a0.y - y, s.a1.y - s.a0.y, t);           // a.y(t) ≤ y
+        clip_linear(y - s.b0.y, s.b0.y - s.b1.y, t);           // y < b.y(t)
+        bool meets = t.x <= t.y;                               // some t holds height y
+        float x0 = min(mix(s.a0.x, s.a1.x, t.x), mix(s.a0.x, s.a1.x, t.y));
+        float x1 = max(mix(s.b0.x, s.b1.x, t.x), mix(s.b0.x, s.b1.x, t.y));
+        int k0 = int(clamp(ceil(x0 * N - u_jitter_x[l & 1]), 0.0, N));
+        int k1 = int(clamp(ceil(x1 * N - u_jitter_x[l & 1]), 0.0, N));
+        bits |= meets ? bit_range(k0, k1) & PARITY[q] : 0u;
+    }
+    return bits;
+}
 #endif
 
 // Fraction of the unit disk covered by the rectangle [a, b] (exact: common/disk.glsl).
@@ -377,6 +415,17 @@ float rect_area(vec2 a, vec2 b) {
     if (u_round == 1) return disk_fraction(a, b);
     vec2 lo = max(a, vec2(-1.0)), hi = min(b, vec2(1.0));
     return max(hi.x - lo.x, 0.0) * max(hi.y - lo.y, 0.0) * 0.25;
+}
+
+// Occluded fraction for a light rectangle swept linearly from [a, b] to back's (solid columns), for the area
+// accumulation: the clipped box around both, less the share of the unclipped box that its two corners
+// outside their hull take.
+float sweep_area(vec2 a, vec2 b, vec4 back) {
+    vec2 lo = min(a, back.xy), hi = max(b, back.zw);
+    float box = (hi.x - lo.x) * (hi.y - lo.y);
+    vec2 shift = abs(0.5 * (back.xy + back.zw - a - b));
+    float hull = box - min(shift.x * shift.y, box);
+    return rect_area(lo, hi) * (box > 0.0 ? hull / box : 1.0);
 }
 
 // ---- micro-occluders --------------------------------------------------------------------------------------
@@ -675,6 +724,48 @@ void clear_centre(Pixel p, vec2 p0, vec2 p1, inout vec2 a, inout vec2 b) {
 }
 #endif
 
+#if COLUMNS
+uniform sampler2D u_exits;      // layer 0's solid exits pyramid (structures/solid_exits.py)
+
+// The nearest exit and the deepest surface of the solid texels among [p0, p1) (the solid exits pyramid; none:
+// x = NO_OCCLUDER): from the 2 × 2 cells of the finest level at which the rectangle spans at most two cells a
+// side (a level-l cell's own rectangle: that cell alone).
+vec2 exits_over(vec2 p0, vec2 p1) {
+    ivec2 lo = ivec2(floor(p0)), hi = max(ivec2(ceil(p1)) - 1, lo);
+    ivec2 side = hi - lo;
+    int j = findMSB(max(side.x, side.y)) + 1;       // 2^j > the side (no loop: llvmpipe counts iterations)
+    lo >>= j;
+    hi >>= j;
+    vec2 e = vec2(NO_OCCLUDER, 0.0);
+    for (int i = 0; i < 4; ++i) {
+        vec2 f = texelFetch(u_exits, min(lo + ivec2(i & 1, i >> 1), hi), j).rg;
+        e = vec2(min(e.x, f.x), max(e.y, f.y));
+    }
+    return e;
+}
+
+// Solid column (ours). Where the depth map's surface is a closed caster's front face, the light centre's ray
+// runs inside the solid until its exit, and the texel stands for that whole stretch of the ray: its rectangle
+// [p0, p1] at every depth from its surface to the exit, no deeper than the receiver's plane there. A light
+// point off the centre sees the solid's sides, which the depth map holds only as its near faces' outline (a
+// post's side faces, along the centre's rays under a low light, hold no texel at all). The columns of a
+// solid's texels fill it without gaps, so level-0 columns need no gap filling. A coarse micro-occluder is
+// solid from the deepest surface to the nearest exit of the solid texels in its (refitted) rectangle; its
+// plate in front stays as it was. The column's backprojection sweeps linearly from the rectangle `s0` at its
+// near end to `s1` at its far end (both the centre and the size of a backprojected rectangle are linear in
+// d/(d − z)); false where no stretch is solid.
+bool solid_column(Pixel p, int layer, vec2 p0, vec2 p1, out vec4 s0, out vec4 s1) {
+    if (layer != 0) return false;               // the exits are layer 0's
+    vec2 e = exits_over(p0, p1);
+    float x = min(e.x, occluding_depth(p, p0, p1));
+    if (!(e.x < EMPTY_DEPTH && x > e.y)) return false;
+    vec2 w0 = window_at(p, p0), w1 = window_at(p, p1);
+    s0 = vec4(backproject(p, w0, e.y), backproject(p, w1, e.y));
+    s1 = vec4(backproject(p, w0, x), backproject(p, w1, x));
+    return true;
+}
+#endif
+
 // Micropatch of cell c (level l): the cell's square at its (minimum) depth, parallel to the light. Gap
 // filling (GBP06): when the left (bottom) neighbour is an occluder too, the patch's left (bottom) edge is
 // extended to where that neighbour's right (top) edge backprojects, closing the gap between them. False
@@ -683,11 +774,12 @@ void clear_centre(Pixel p, vec2 p0, vec2 p1, inout vec2 a, inout vec2 b) {
 // `whole`, the light rectangle of the whole cell before the refit and coverage shrink it (the split's test).
 // `fill`: whether gap filling applies (see gather_range: not to a split's coarse parts).
 bool micropatch(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out vec2 b, out float area,
-                out vec4 whole) {
+                out vec4 whole, out vec4 col0, out vec4 col1) {
     float s = float(1 << l);
     float z = cell_depth(layer, l, c);
     vec2 p0 = vec2(c) * s, p1 = min(p0 + s, vec2(u_map_size));
     area = 0.0;
+    col0 = col1 = vec4(0.0);
     bool occludes = cell_occludes(p, z, p0, p1, l);
 #if SPLIT && COVERAGE
     if (!occludes && hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
@@ -713,8 +805,13 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out v
 #if REFIT == REFIT_PLANE
     if (l > 0) backproject_tilted(p, p0, p1, z, slope, a, b);
 #endif
+#if COLUMNS
+    bool solid = solid_column(p, layer, p0, p1, col0, col1);
+#else
+    const bool solid = false;
+#endif
 #if GAP_FILL
-    if (fill) {
+    if (fill && !(solid && l == 0)) {
         float zl = cell_depth(layer, l, c - ivec2(1, 0));
         if (cell_occludes(p, zl, p0 - vec2(s, 0.0), vec2(p0.x, p1.y), l))
             a.x = min(a.x, backproject(p, w0, zl).x);
@@ -726,8 +823,9 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out v
 #if REFIT != REFIT_NONE
     if (l > 0) clear_centre(p, p0, p1, a, b);
 #endif
+    if (!solid) col0 = col1 = vec4(a, b);
 #if NEED_AREA
-    area = rect_area(a, b);
+    area = solid ? max(rect_area(a, b), sweep_area(col0.xy, col0.zw, col1)) : rect_area(a, b);
 #endif
     return true;
 }
@@ -737,11 +835,12 @@ bool micropatch(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out v
 // as for micropatches, towards the left/bottom neighbour microrect when its extent reaches this one's. At
 // level 0 extent and depth are the texel's own, so this is exactly micropatch().
 bool microrect(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out vec2 b, out float area,
-               out vec4 whole) {
+               out vec4 whole, out vec4 col0, out vec4 col1) {
     vec4 ext;
     float z = rect_depth(layer, l, c, ext);
     vec2 p0 = ext.xy, p1 = min(ext.zw, vec2(u_map_size));
     area = 0.0;
+    col0 = col1 = vec4(0.0);
     bool occludes = cell_occludes(p, z, p0, p1, l);
 #if SPLIT && COVERAGE
     if (!occludes && hides_occluders(p, layer, l, c, z, p0, p1)) area = -1.0;
@@ -767,8 +866,13 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out ve
 #if REFIT == REFIT_PLANE
     if (l > 0) backproject_tilted(p, p0, p1, z, slope, a, b);
 #endif
+#if COLUMNS
+    bool solid = solid_column(p, layer, p0, p1, col0, col1);
+#else
+    const bool solid = false;
+#endif
 #if GAP_FILL
-    if (fill) {
+    if (fill && !(solid && l == 0)) {
         vec4 el, eb;
         float zl = rect_depth(layer, l, c - ivec2(1, 0), el);
         if (el.z >= p0.x && cell_occludes(p, zl, el.xy, min(el.zw, vec2(u_map_size)), l))
@@ -781,8 +885,9 @@ bool microrect(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out ve
 #if REFIT != REFIT_NONE
     if (l > 0) clear_centre(p, p0, p1, a, b);
 #endif
+    if (!solid) col0 = col1 = vec4(a, b);
 #if NEED_AREA
-    area = rect_area(a, b);
+    area = solid ? max(rect_area(a, b), sweep_area(col0.xy, col0.zw, col1)) : rect_area(a, b);
 #endif
     return true;
 }
@@ -992,9 +1097,19 @@ Occlusion no_occlusion() {
 // OR the light rectangle [a, b] (occluded fraction `area`) into `o`: a macro, not a function, so that the
 // bitmask is not copied per micro-occluder (bitmask rows outside the span OR zero).
 #if BITS > 0
-#define ADD_OCCLUDER(o, a, b, area) { (o).area += (area); Span s_ = rect_span((a) * 0.5 + 0.5, (b) * 0.5 + 0.5); if (s_.rows.x < s_.rows.y) for (int r_ = 0; r_ < BITS; ++r_) (o).bits[r_] |= span_row(s_, r_); }
+#define ADD_OCCLUDER(o, a, b, ar) { (o).area += (ar); Span s_ = rect_span((a) * 0.5 + 0.5, (b) * 0.5 + 0.5); if (s_.rows.x < s_.rows.y) for (int r_ = 0; r_ < BITS; ++r_) (o).bits[r_] |= span_row(s_, r_); }
+// The same for a rectangle swept from [a, b] to back's (solid columns): only the rows its hull reaches.
+#define ADD_SWEEP(o, a, b, back, ar) { (o).area += (ar); Sweep w_ = Sweep((a) * 0.5 + 0.5, (b) * 0.5 + 0.5, (back).xy * 0.5 + 0.5, (back).zw * 0.5 + 0.5); int r0_ = int(floor(min(w_.a0.y, w_.a1.y) * float(BITS))) - 1, r1_ = int(ceil(max(w_.b0.y, w_.b1.y) * float(BITS))) + 1; for (int r_ = 0; r_ < BITS; ++r_) if (r_ >= r0_ && r_ < r1_) (o).bits[r_] |= sweep_row(w_, r_); }
 #else
-#define ADD_OCCLUDER(o, a, b, area) { (o).area += (area); }
+#define ADD_OCCLUDER(o, a, b, ar) { (o).area += (ar); }
+#define ADD_SWEEP(o, a, b, back, ar) { (o).area += (ar); }
+#endif
+// A micro-occluder: its rectangle [a, b], and where it is solid (solid_column) the sweep from col0 to col1 (at
+// level 0 the rectangle is col0 and only the sweep is added).
+#if COLUMNS
+#define ADD_MICRO_OCCLUDER(o, a, b, col0, col1, area) { if ((col0) == (col1)) ADD_OCCLUDER(o, a, b, area) else { if (vec4((a), (b)) != (col0)) ADD_OCCLUDER(o, a, b, 0.0) ADD_SWEEP(o, (col0).xy, (col0).zw, col1, area) } }
+#else
+#define ADD_MICRO_OCCLUDER(o, a, b, col0, col1, area) ADD_OCCLUDER(o, a, b, area)
 #endif
 
 #if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
@@ -1022,13 +1137,14 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
     for (int i = i0; i < i1; ++i) {
         vec2 a, b;
         float area;
-        vec4 whole;
+        vec4 whole, col0, col1;
 #if PRIMITIVE == PRIMITIVE_MICROPATCH
-        bool hit = micropatch(p, layer, l, c, true, a, b, area, whole);
+        bool hit = micropatch(p, layer, l, c, true, a, b, area, whole, col0, col1);
 #elif PRIMITIVE == PRIMITIVE_MICRORECT
-        bool hit = microrect(p, layer, l, c, true, a, b, area, whole);
+        bool hit = microrect(p, layer, l, c, true, a, b, area, whole, col0, col1);
 #else
         bool hit = microquad(p, layer, l, c, a, b, area, whole);
+        col0 = col1 = vec4(a, b);
 #endif
 #if SPLIT && PRIMITIVE != PRIMITIVE_MICROQUAD
         // Near-field split (ours): a coarse micro-occluder stands for its texels only as far as its error
@@ -1082,15 +1198,15 @@ void gather_range(Pixel p, ivec2 lo, ivec2 hi, int l, int i0, int i1, inout Occl
             for (int q = 0; q < parts; ++q) {
                 ivec2 jq = s0 + ivec2(q % nx, q / nx);
 #if PRIMITIVE == PRIMITIVE_MICRORECT
-                bool h = microrect(p, layer, f, jq, fill, a, b, area, whole);
+                bool h = microrect(p, layer, f, jq, fill, a, b, area, whole, col0, col1);
 #else
-                bool h = micropatch(p, layer, f, jq, fill, a, b, area, whole);
+                bool h = micropatch(p, layer, f, jq, fill, a, b, area, whole, col0, col1);
 #endif
-                if (h) ADD_OCCLUDER(o, a, b, area);
+                if (h) ADD_MICRO_OCCLUDER(o, a, b, col0, col1, area);
             }
         } else
 #endif
-        if (hit) ADD_OCCLUDER(o, a, b, area);
+        if (hit) ADD_MICRO_OCCLUDER(o, a, b, col0, col1, area);
         if (++c.x > last.x) {
             c.x = first.x;
             if (++c.y > last.y) {

@@ -7,14 +7,18 @@ in vec3 v_position;
 uniform vec4 u_clip_sphere;     // centre, r²
 #endif
 
-#ifdef BACK_FACES
-// The casters' back faces only (seen from the light centre): a solid's far side (structures/depth_map.py).
+#if defined(BACK_FACES) || defined(FRONT_FACES)
+// The casters' back faces only (seen from the light centre): a solid's far side (structures/depth_map.py);
+// or their front faces only: where the light centre's rays enter solids (structures/solid_exits.py).
 #include "common/facing.glsl"
 #endif
 
 void main() {
 #ifdef BACK_FACES
     if (front_facing()) discard;
+#endif
+#ifdef FRONT_FACES
+    if (!front_facing()) discard;
 #endif
 #ifdef CLIP_SPHERE
     vec3 from_centre = v_position - u_clip_sphere.xyz;
