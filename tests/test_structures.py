@@ -158,9 +158,13 @@ def test_peeling_leaves_out_a_solids_far_side_and_the_bare_ground():
     shell = _solids_over_ground([box((-0.8, -0.8, 0.8), (0.8, 0.8, 1.0))], closed=False)
     assert pipeline.render(shell, base.with_(bp_layers=2)).stats["structure_bytes"]["peeled_layers"] > 0
     # Narrower than the light, the box's sides turned away from the centre lie on its outline seen from the
-    # light's far edge: they are peeled.
+    # light's far edge: they are peeled, unless the solid columns (the default) stand for the far side.
     narrow = _solids_over_ground([box((-0.3, -0.3, 0.8), (0.3, 0.3, 1.0))])
-    assert pipeline.render(narrow, base.with_(bp_layers=2)).stats["structure_bytes"]["peeled_layers"] > 0
+    peeled = pipeline.render(narrow, base.with_(bp_layers=2, bp_solid_columns=False)).stats["structure_bytes"]
+    assert peeled["peeled_layers"] > 0
+    columns = pipeline.render(narrow, base.with_(bp_layers=2)).stats
+    assert columns["structure_bytes"]["peeled_layers"] == 0 and columns["structure_bytes"]["solid_exits"] > 0
+    assert [s["depth_layers"] for s in columns["per_light"]] == [1]
 
 
 def test_peeling_keeps_a_solid_hidden_from_the_light_centre():

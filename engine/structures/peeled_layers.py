@@ -3,8 +3,8 @@ layers behind it, each holding per texel the nearest caster fragment strictly be
 occluders hidden from the centre still become micro-occluders. Ours, to leave out what a light does not
 need: of a closed caster's far side only the faces the centre sees within the light's angular radius of
 edge-on are peeled (glsl/backprojection/peel.frag: only they can lie on the solid's outline from another
-light point), a peeled texel is kept only where some surface lies behind it, and a layer left empty is
-dropped. BACKPROJECTION reads them."""
+light point), none where BACKPROJECTION's solid columns stand for the far side (`far_side`); a peeled texel
+is kept only where some surface lies behind it, and a layer left empty is dropped. BACKPROJECTION reads them."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -37,7 +37,10 @@ class PeeledLayers:
 
 
 @structure(PEELED_LAYERS, requires=(DEPTH_MAP,))
-def build(frame, lc, layers: int = 1):
+def build(frame, lc, layers: int = 1, far_side: bool = True):
+    """`far_side`: peel a closed caster's faces turned away from the centre where they lie within the light's
+    angular radius of edge-on; off where something else stands for the far side (BACKPROJECTION's solid
+    columns), so that only occluders hidden behind others are peeled."""
     view, out = lc.view, [lc.structures[DEPTH_MAP]]
     with frame.timings.stage("bp_peel"):
         if layers <= 1 or not frame.geometry.has_casters:
@@ -49,7 +52,8 @@ def build(frame, lc, layers: int = 1):
         all_faces = [(everything, {"u_closed": 0})]
         radius = float(np.hypot(*light_half_extent(lc.light, view.face)))
         peel = dict(prog=prog, view=view.view, view_proj=view.view_proj,
-                    uniforms={"u_peel_eps": PEEL_EPS, "u_light_ortho": int(view.is_ortho), "u_light_radius": radius})
+                    uniforms={"u_peel_eps": PEEL_EPS, "u_light_ortho": int(view.is_ortho), "u_light_radius": radius,
+                              "u_far_side": int(far_side)})
         peeled = [out[0]]
         for _ in range(layers - 1):     # each behind the previous one as drawn, before the mask thins it
             peeled.append(frame.rasterise(frame.new_depth_target(view), draws=near_faces,

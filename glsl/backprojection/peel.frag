@@ -12,6 +12,8 @@ in vec3 v_view;
 uniform sampler2D u_prev;       // the previous layer (R32F linear depth, NO_OCCLUDER where empty)
 uniform float u_peel_eps;       // relative depth separation between layers
 uniform int u_closed = 0;       // 1: a closed caster (cull its far side as above)
+uniform int u_far_side = 1;     // 0: cull a closed caster's far side whole (BACKPROJECTION's solid columns
+                                // stand for it: structures/solid_exits.py)
 #include "common/facing.glsl"
 uniform int u_light_ortho;      // 1: a sun (rays along −Z)
 uniform float u_light_radius;   // the light's half diagonal: metres, or tan of the half angle for a sun
@@ -21,6 +23,7 @@ void main() {
     vec3 n = cross(dFdx(v_view), dFdy(v_view));     // the face's normal (before any branch: derivatives)
     vec3 ray = u_light_ortho == 1 ? vec3(0.0, 0.0, -1.0) : v_view;
     if (u_closed == 1 && !front_facing()) {
+        if (u_far_side == 0) discard;
         float cos_n = abs(dot(n, ray)) / max(length(n) * length(ray), 1e-30);
         float r = u_light_radius;
         float sin_a = u_light_ortho == 1 ? r * inversesqrt(1.0 + r * r) : min(r / max(length(v_view), 1e-30), 1.0);
