@@ -772,7 +772,8 @@ bool solid_column(Pixel p, int layer, vec2 p0, vec2 p1, out vec4 s0, out vec4 s1
 // when the cell occludes nothing (with `area` < 0 where it may hide occluders all the same, for the split to
 // look inside: hides_occluders); else its light rectangle [a, b] and occluded fraction `area`, and (SPLIT)
 // `whole`, the light rectangle of the whole cell before the refit and coverage shrink it (the split's test).
-// `fill`: whether gap filling applies (see gather_range: not to a split's coarse parts).
+// `fill`: whether gap filling applies (see gather_range: not to a split's coarse parts). `col0`, `col1`: the
+// ends of its solid column's sweep (solid_column; both [a, b] where it has none).
 bool micropatch(Pixel p, int layer, int l, ivec2 c, bool fill, out vec2 a, out vec2 b, out float area,
                 out vec4 whole, out vec4 col0, out vec4 col1) {
     float s = float(1 << l);
