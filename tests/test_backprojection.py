@@ -69,8 +69,28 @@ def test_jittered_pattern_is_a_tiling_of_the_rotated_grid():
     assert np.allclose(regular[0, :, 0], (np.arange(16) + 0.5) / 16)
 
 
+@pytest.mark.parametrize("acc,n", [("BITMASK_16MJ", 16), ("BITMASK_32MJ", 32)])
+def test_multi_jittered_pattern_gives_every_sample_its_own_column_and_row_offset(acc, n):
+    """The multi-jittered N×N patterns: one sample per cell of the N×N grid, and all N² x (and y) positions
+    distinct, so an edge along the light's sides steps in 1/N². Within a row the cells' y offsets follow the
+    bit-reversal order, whose every prefix is spread evenly: the samples left of any vertical edge sit on
+    average at their cells' middle height (a sheared lattice, offsets growing with k, puts them low, and under
+    steeply varying irradiance weights the shadow shifts: visibility.comp MULTI_JITTER)."""
+    p = sample_positions(acc)
+    cell = np.floor(p * n).astype(int)
+    assert (cell[..., 0] == np.arange(n)[None, :]).all() and (cell[..., 1] == np.arange(n)[:, None]).all()
+    assert len(np.unique(np.round(p[..., 0] * n * n, 6))) == n * n
+    assert len(np.unique(np.round(p[..., 1] * n * n, 6))) == n * n
+    offset_y = p[..., 1] * n - cell[..., 1]
+    # The samples of columns 0 … k − 1, in every row: their offsets' sum strays from k/2 by under one sample
+    # (at N = 16 0.72 at most; the sheared lattice's by k/2 − k²/(2N), up to N/8).
+    for k in range(1, n + 1):
+        assert np.abs(offset_y[:, :k].sum(axis=1) - k / 2).max() <= 1.0
+
+
 def test_round_lights_mask_the_samples_outside_the_ellipse():
-    for acc, n in (("BITMASK_8", 8), ("BITMASK_16J", 16), ("BITMASK_32", 32)):
+    for acc, n in (("BITMASK_8", 8), ("BITMASK_16J", 16), ("BITMASK_32", 32), ("BITMASK_16MJ", 16),
+                   ("BITMASK_32MJ", 32)):
         m = valid_mask(acc, True)
         assert m.shape == (n, n)
         assert abs(m.mean() - np.pi / 4) < 0.06          # the disk's share of its square
@@ -100,7 +120,7 @@ def _plane_error(plane, settings):
     return np.abs(err), r
 
 
-@pytest.mark.parametrize("acc", ["AREA", "BITMASK_16J", "BITMASK_32"])
+@pytest.mark.parametrize("acc", ["AREA", "BITMASK_16J", "BITMASK_32", "BITMASK_16MJ"])
 def test_parallel_planes_match_the_closed_form(plane, acc):
     """Parallel planes are the one case where micropatches are exact: the occluder is a plane parallel to the
     light, so its texels tile it. With a 256² map and b = 64 every pixel uses level 0 (the search area spans
@@ -170,7 +190,7 @@ def reference_disk():
     return snap, ref.passes["Visibility"][..., 0], ref_sq.passes["Visibility"][..., 0]
 
 
-@pytest.mark.parametrize("acc", ["AREA", "BITMASK_16J", "BITMASK_32"])
+@pytest.mark.parametrize("acc", ["AREA", "BITMASK_16J", "BITMASK_32", "BITMASK_16MJ"])
 def test_disk_light_counts_only_samples_inside_the_disk(reference_disk, acc):
     """A disk light against REFERENCE (256 maps from points of the disk): bits outside the disk never count.
     Were they counted the result would be the square light's, which differs from the disk's by ≈ 0.05 on the
@@ -189,7 +209,7 @@ def test_disk_light_counts_only_samples_inside_the_disk(reference_disk, acc):
     assert e_disk < 0.5 * e_square
 
 
-@pytest.mark.parametrize("acc", ["BITMASK_16J", "BITMASK_32"])
+@pytest.mark.parametrize("acc", ["BITMASK_16J", "BITMASK_32", "BITMASK_16MJ", "BITMASK_32MJ"])
 def test_irradiance_weighted_samples_match_the_weighted_reference(plane, acc):
     """With bp_weighting=IRRADIANCE each bit counts its light sample's unoccluded contribution at the receiver
     (cosines over squared distance), which is the visibility Cycles measures. Against REFERENCE with the

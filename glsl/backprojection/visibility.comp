@@ -86,6 +86,9 @@ uniform sampler2D u_importance_image;    // BUDGET_IMPORTANCE: per pixel, the bu
 uniform sampler2D u_importance_objects;  // …and the importance of the object seen there
 uniform int u_force_level;      // ≥ 0: every pixel gathers at this level (the study's forced coarse levels)
 uniform int u_levels;           // hierarchy levels available (0 … u_levels−1)
+#ifndef MULTI_JITTER
+#define MULTI_JITTER 0          // 1: the multi-jittered patterns (BITMASK_16MJ, BITMASK_32MJ), see rect_span
+#endif
 uniform vec2 u_jitter_x;        // bitmask sample x offset within its column, per row parity (§3)
 uniform vec2 u_jitter_y;        // bitmask sample y offset within its row, per column parity
 #if BITS > 0
@@ -342,12 +345,70 @@ uint bit_range(int k0, int k1) {
 // range per row parity, rows into a range per column parity (scale, bias and integer conversion). The
 // owner of the bitmask ORs span_row(s, l) into rows s.rows.x ≤ l < s.rows.y (no bitmask is passed around:
 // a function taking the array inout would copy it per micro-occluder).
+#if !MULTI_JITTER
 struct Span {
     uvec2 cols;                 // column bits, for even and odd rows
     ivec2 r0, r1;               // row range [r0, r1), for even and odd columns
     ivec2 rows;                 // rows touched: [min r0, max r1)
 };
+#endif
 
+#if MULTI_JITTER
+// Multi-jittered rooks (ours; the layout of Chiu, Shirley & Wang's multi-jittered sampling): sample (column k,
+// row l) sits at ((k + (P[l] + ½)/N) / N, (l + (P[k] + ½)/N) / N), P the bit-reversal permutation. The N² samples
+// take N² distinct x and N² distinct y values, where the jittered pattern's take 2N: an edge parallel to the
+// light's sides (a box, a plane, the light's own outline) crossed a whole row of samples at once and the
+// penumbra came out in 2N steps, the same with N = 32. P, not the identity (a sheared lattice): with the
+// identity a cell's y offset grows with k, so the samples left of a vertical edge sit low in their cells, and
+// under a light whose irradiance weights change steeply over it (one seen low over the receiver) the shadow
+// shifted (`grazing` 0.0097 → 0.0129); any prefix of the bit-reversal order is spread evenly. Within a row x is
+// k plus a per-row offset, so a rectangle's x bounds give one range of k (⌊A⌋ or ⌊A⌋ + 1 by whether P[l] lies
+// below a threshold); its y bounds cut only its first and last row, by a mask of the columns k whose P[k]
+// clears the threshold (MJ_AT_LEAST).
+#if BITS == 16
+const int MJ_PERM[16] = int[16](0, 8, 4, 12, 2, 10, 6, 14, 1, 9, 5, 13, 3, 11, 7, 15);
+const uint MJ_AT_LEAST[17] = uint[17](0xffffu, 0xfffeu, 0xfefeu, 0xfeeeu, 0xeeeeu, 0xeeeau, 0xeaeau, 0xeaaau,
+    0xaaaau, 0xaaa8u, 0xa8a8u, 0xa888u, 0x8888u, 0x8880u, 0x8080u, 0x8000u, 0x0000u);  // columns with P[k] ≥ t
+#elif BITS == 32
+const int MJ_PERM[32] = int[32](0, 16, 8, 24, 4, 20, 12, 28, 2, 18, 10, 26, 6, 22, 14, 30, 1, 17, 9, 25, 5, 21, 13,
+    29, 3, 19, 11, 27, 7, 23, 15, 31);
+const uint MJ_AT_LEAST[33] = uint[33](0xffffffffu, 0xfffffffeu, 0xfffefffeu, 0xfffefefeu, 0xfefefefeu, 0xfefefeeeu,
+    0xfeeefeeeu, 0xfeeeeeeeu, 0xeeeeeeeeu, 0xeeeeeeeau, 0xeeeaeeeau, 0xeeeaeaeau, 0xeaeaeaeau, 0xeaeaeaaau,
+    0xeaaaeaaau, 0xeaaaaaaau, 0xaaaaaaaau, 0xaaaaaaa8u, 0xaaa8aaa8u, 0xaaa8a8a8u, 0xa8a8a8a8u, 0xa8a8a888u,
+    0xa888a888u, 0xa8888888u, 0x88888888u, 0x88888880u, 0x88808880u, 0x88808080u, 0x80808080u, 0x80808000u,
+    0x80008000u, 0x80000000u, 0x00000000u);
+#else
+#error "the multi-jittered pattern is laid out for 16 x 16 and 32 x 32 samples"
+#endif
+
+struct Span {
+    ivec4 x;                    // (⌊a.x·N⌋, its threshold on P[l], ⌊b.x·N⌋, its threshold)
+    ivec4 y;                    // (first row, its threshold on P[k], last row, its threshold)
+    ivec2 rows;                 // rows touched: [first, last + 1)
+};
+
+Span rect_span(vec2 a, vec2 b) {
+    float N = float(BITS);
+    Span s;
+    vec2 ax = clamp(vec2(a.x, b.x), -1.0, 2.0) * N, mx = floor(ax);
+    ivec2 tx = ivec2(ceil((ax - mx) * N - 0.5));
+    s.x = ivec4(int(mx.x), tx.x, int(mx.y), tx.y);
+    vec2 ay = clamp(vec2(a.y, b.y), -1.0, 2.0) * N, my = floor(ay);
+    ivec2 ty = clamp(ivec2(ceil((ay - my) * N - 0.5)), 0, BITS);
+    s.y = ivec4(int(my.x), ty.x, int(my.y), ty.y);
+    s.rows = ivec2(max(s.y.x, 0), min(s.y.z, BITS - 1) + 1);
+    return s;
+}
+
+uint span_row(Span s, int l) {
+    if (l < s.y.x || l > s.y.z) return 0u;
+    int p = MJ_PERM[l];
+    uint m = bit_range(clamp(s.x.x + int(p < s.x.y), 0, BITS), clamp(s.x.z + int(p < s.x.w), 0, BITS));
+    if (l == s.y.x) m &= MJ_AT_LEAST[s.y.y];
+    if (l == s.y.z) m &= ~MJ_AT_LEAST[s.y.w] & ROW_MASK;
+    return m;
+}
+#else
 Span rect_span(vec2 a, vec2 b) {
     float N = float(BITS);
     Span s;
@@ -367,6 +428,7 @@ uint span_row(Span s, int l) {
     uint sel = ((l >= s.r0[0] && l < s.r1[0]) ? EVEN : 0u) | ((l >= s.r0[1] && l < s.r1[1]) ? ODD : 0u);
     return s.cols[l & 1] & sel;
 }
+#endif
 
 // A rectangle swept linearly from [a0, b0] to [a1, b1] (light coordinates in [0, 1]; a solid column's
 // backprojection, solid_column): the union over t of [mix(a0, a1, t), mix(b0, b1, t)], which is the convex hull
@@ -384,6 +446,37 @@ void clip_linear(float f0, float df, inout vec2 t) {
     else if (f0 > 0.0) t = vec2(1.0, 0.0);
 }
 
+#if MULTI_JITTER
+// The hull's x extent [x0, x1) at height y (x0 > x1: the hull does not reach y).
+vec2 sweep_extent(Sweep s, float y) {
+    vec2 t = vec2(0.0, 1.0);
+    clip_linear(s.a0.y - y, s.a1.y - s.a0.y, t);
+    clip_linear(y - s.b0.y, s.b0.y - s.b1.y, t);
+    if (t.x > t.y) return vec2(1.0, 0.0);
+    return vec2(min(mix(s.a0.x, s.a1.x, t.x), mix(s.a0.x, s.a1.x, t.y)),
+                max(mix(s.b0.x, s.b1.x, t.x), mix(s.b0.x, s.b1.x, t.y)));
+}
+
+// Row l of the rooks pattern, in two halves by height: the columns whose sample lies in the lower half of its
+// cell (P[k] < N/2) take the hull's extent at that half's middle height, the others at the upper half's; the
+// hull's height range cuts by each sample's own height (a side of the hull that slants within a half is taken
+// at the half's middle: at most a quarter row off).
+uint sweep_row(Sweep s, int l) {
+    float N = float(BITS), c = (float(MJ_PERM[l]) + 0.5) / N;
+    float ymin = min(s.a0.y, s.a1.y), ymax = max(s.b0.y, s.b1.y);
+    int t0 = int(clamp(ceil((ymin * N - float(l)) * N - 0.5), 0.0, N));
+    int t1 = int(clamp(ceil((ymax * N - float(l)) * N - 0.5), 0.0, N));
+    uint in_range = MJ_AT_LEAST[t0] & ~MJ_AT_LEAST[t1];
+    uint bits = 0u;
+    for (int h = 0; h < 2; ++h) {
+        vec2 e = sweep_extent(s, (float(l) + 0.25 + 0.5 * float(h)) / N);
+        int k0 = int(clamp(ceil(e.x * N - c), 0.0, N)), k1 = int(clamp(ceil(e.y * N - c), 0.0, N));
+        uint half_ = h == 0 ? ~MJ_AT_LEAST[BITS / 2] & ROW_MASK : MJ_AT_LEAST[BITS / 2];
+        bits |= e.x <= e.y ? bit_range(k0, k1) & half_ : 0u;
+    }
+    return bits & in_range;
+}
+#else
 uint sweep_row(Sweep s, int l) {
     const uint PARITY[2] = uint[2](0x55555555u & ROW_MASK, 0xaaaaaaaau & ROW_MASK);
     float N = float(BITS);
@@ -402,6 +495,7 @@ uint sweep_row(Sweep s, int l) {
     }
     return bits;
 }
+#endif
 #endif
 
 // Fraction of the unit disk covered by the rectangle [a, b] (exact: common/disk.glsl).
@@ -932,7 +1026,11 @@ bool microquad(Pixel p, int layer, int l, ivec2 c, out vec2 a, out vec2 b, out f
 // engine/techniques/backprojection.py.
 vec2 sample_position(int l, int k) {
     float n = float(BITS);
+#if MULTI_JITTER
+    return vec2(float(k) + (float(MJ_PERM[l]) + 0.5) / n, float(l) + (float(MJ_PERM[k]) + 0.5) / n) / n * 2.0 - 1.0;
+#else
     return vec2((float(k) + u_jitter_x[l & 1]) / n, (float(l) + u_jitter_y[k & 1]) / n) * 2.0 - 1.0;
+#endif
 }
 
 // Bitmask row l's samples that stand for points of the light: the light's shape (u_valid) for planar lights
