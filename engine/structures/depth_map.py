@@ -19,3 +19,9 @@ def build(frame, lc):
 @structure(BACK_DEPTH_MAP)
 def build_back(frame, lc):
     return frame.render_depth_map(lc.view, back_faces=True)
+
+
+def closed_casters(frame) -> frozenset:
+    """Indices of the snapshot's closed casters (watertight meshes): the solids whose far side the peeled
+    layers thin out and whose inside the solid exits measure."""
+    return frozenset(i for i, ob in enumerate(frame.snap.objects) if ob.closed)

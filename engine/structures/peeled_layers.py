@@ -15,7 +15,7 @@ from ..core.light_shape import light_half_extent
 from ..gpu.frame import resource_bytes
 from ..gpu.programs import program
 from . import structure
-from .depth_map import DEPTH_MAP
+from .depth_map import DEPTH_MAP, closed_casters
 
 PEELED_LAYERS = "peeled_layers"
 # Relative depth gap (fraction of the previous layer's linear depth) a fragment must lie behind it to count
@@ -47,7 +47,7 @@ def build(frame, lc, layers: int = 1, far_side: bool = True):
             return PeeledLayers(out)
         prog = program(frame.worker, "common/depth.vert", "backprojection/peel.frag")
         everything = frozenset(range(len(frame.snap.objects)))
-        closed = frozenset(i for i, ob in enumerate(frame.snap.objects) if ob.closed)
+        closed = closed_casters(frame)
         near_faces = [(ids, {"u_closed": flag}) for ids, flag in ((closed, 1), (everything - closed, 0)) if ids]
         all_faces = [(everything, {"u_closed": 0})]
         radius = float(np.hypot(*light_half_extent(lc.light, view.face)))

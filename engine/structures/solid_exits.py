@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from ..gpu.programs import program
 from . import structure
-from .depth_map import DEPTH_MAP
+from .depth_map import DEPTH_MAP, closed_casters
 from .hsm import chain_bytes, padded_size, reduce_pyramid
 
 SOLID_EXITS = "solid_exits"
@@ -33,7 +33,7 @@ class SolidExits:
 def build(frame, lc):
     view = lc.view
     size = padded_size(view.width, view.height)
-    closed = frozenset(i for i, ob in enumerate(frame.snap.objects) if ob.closed)
+    closed = closed_casters(frame)
     if not closed or not frame.geometry.has_casters:
         return SolidExits(None, size)
     with frame.timings.stage("bp_exits"):

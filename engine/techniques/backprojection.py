@@ -92,7 +92,8 @@ BUDGET_MODE = {"UNIFORM": BUDGET_UNIFORM, "BORDER": BUDGET_BORDER, "UNBOUNDED": 
                "IMPORTANCE": BUDGET_IMPORTANCE}
 PRIMITIVE = {"MICROPATCH": PRIMITIVE_MICROPATCH, "MICROQUAD": PRIMITIVE_MICROQUAD, "MICRORECT": PRIMITIVE_MICRORECT}
 
-BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32, "BITMASK_16MJ": 16, "BITMASK_32MJ": 32}
+BITS = {"AREA": 0, "BITMASK_8": 8, "BITMASK_16": 16, "BITMASK_16J": 16, "BITMASK_32": 32, "BITMASK_16MJ": 16,
+        "BITMASK_32MJ": 32}
 MULTI_JITTERED = ("BITMASK_16MJ", "BITMASK_32MJ")       # visibility.comp MULTI_JITTER
 REFINE = {"NONE": REFINE_NONE, "HSM": REFINE_HSM, "MSSM": REFINE_MSSM, "YSM": REFINE_YSM}
 REFIT = {"NONE": REFIT_NONE, "EXTENT": REFIT_EXTENT, "MEAN": REFIT_MEAN, "DEPTH": REFIT_DEPTH, "PLANE": REFIT_PLANE}
@@ -470,7 +471,8 @@ class Backprojection(Technique):
             rgb_tex = frame.texture(size, 4)
             images[2] = rgb_tex
             lc.visibility_rgb = rgb_tex         # Combined shades each channel with its own visibility
-        defines = {"BITS": bits, "MULTI_JITTER": int(accumulation in MULTI_JITTERED), "PRIMITIVE": primitive, "GAP_FILL": int(bool(o["bp_gap_fill"])),
+        defines = {"BITS": bits, "MULTI_JITTER": int(accumulation in MULTI_JITTERED), "PRIMITIVE": primitive,
+                   "GAP_FILL": int(bool(o["bp_gap_fill"])),
                    "REFINE": refine, "LAYERS": len(maps), "TEXTURED": int(texture is not None),
                    "WEIGHTED": int(weighted),
                    "NEED_AREA": int(bits == 0 or filter_passes > 0 or frame.settings.debug_passes),
@@ -593,4 +595,3 @@ class Backprojection(Technique):
                 lc.debug["BP Color Visibility"] = frame.read(rgb_tex, 3).copy()
             else:                       # white light: every channel sees the scalar visibility
                 lc.debug["BP Color Visibility"] = np.repeat(frame.read(out, 1), 3, axis=-1)
-

@@ -1,5 +1,5 @@
-// Solid exits pyramid (structures/solid_exits.py), RG32F: level 0 holds the exit depth where the depth map's
-// surface is a closed caster's entry (0 elsewhere and in the padding) and the surface's depth; level l the
+// Solid exits pyramid (structures/solid_exits.py), RG32F: level 0 holds (exit depth, surface depth) where the
+// depth map's surface is a closed caster's entry, (NO_OCCLUDER, 0) elsewhere and in the padding; level l the
 // nearest exit and the deepest surface of its 2×2 children. A cell whose nearest exit lies behind its deepest
 // surface is solid over that stretch for every one of its texels.
 layout(local_size_x = 8, local_size_y = 8) in;

@@ -446,7 +446,6 @@ void clip_linear(float f0, float df, inout vec2 t) {
     else if (f0 > 0.0) t = vec2(1.0, 0.0);
 }
 
-#if MULTI_JITTER
 // The hull's x extent [x0, x1) at height y (x0 > x1: the hull does not reach y).
 vec2 sweep_extent(Sweep s, float y) {
     vec2 t = vec2(0.0, 1.0);
@@ -457,6 +456,7 @@ vec2 sweep_extent(Sweep s, float y) {
                 max(mix(s.b0.x, s.b1.x, t.x), mix(s.b0.x, s.b1.x, t.y)));
 }
 
+#if MULTI_JITTER
 // Row l of the rooks pattern, in two halves by height: the columns whose sample lies in the lower half of its
 // cell (P[k] < N/2) take the hull's extent at that half's middle height, the others at the upper half's; the
 // hull's height range cuts by each sample's own height (a side of the hull that slants within a half is taken
@@ -482,16 +482,10 @@ uint sweep_row(Sweep s, int l) {
     float N = float(BITS);
     uint bits = 0u;
     for (int q = 0; q < 2; ++q) {
-        float y = (float(l) + u_jitter_y[q]) / N;
-        vec2 t = vec2(0.0, 1.0);
-        clip_linear(s.a0.y - y, s.a1.y - s.a0.y, t);           // a.y(t) ≤ y
-        clip_linear(y - s.b0.y, s.b0.y - s.b1.y, t);           // y < b.y(t)
-        bool meets = t.x <= t.y;                               // some t holds height y
-        float x0 = min(mix(s.a0.x, s.a1.x, t.x), mix(s.a0.x, s.a1.x, t.y));
-        float x1 = max(mix(s.b0.x, s.b1.x, t.x), mix(s.b0.x, s.b1.x, t.y));
-        int k0 = int(clamp(ceil(x0 * N - u_jitter_x[l & 1]), 0.0, N));
-        int k1 = int(clamp(ceil(x1 * N - u_jitter_x[l & 1]), 0.0, N));
-        bits |= meets ? bit_range(k0, k1) & PARITY[q] : 0u;
+        vec2 e = sweep_extent(s, (float(l) + u_jitter_y[q]) / N);
+        int k0 = int(clamp(ceil(e.x * N - u_jitter_x[l & 1]), 0.0, N));
+        int k1 = int(clamp(ceil(e.y * N - u_jitter_x[l & 1]), 0.0, N));
+        bits |= e.x <= e.y ? bit_range(k0, k1) & PARITY[q] : 0u;
     }
     return bits;
 }
