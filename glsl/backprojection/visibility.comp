@@ -458,9 +458,12 @@ vec2 sweep_extent(Sweep s, float y) {
 
 #if MULTI_JITTER
 // Row l of the rooks pattern, in two halves by height: the columns whose sample lies in the lower half of its
-// cell (P[k] < N/2) take the hull's extent at that half's middle height, the others at the upper half's; the
-// hull's height range cuts by each sample's own height (a side of the hull that slants within a half is taken
-// at the half's middle: at most a quarter row off).
+// cell (P[k] < N/2) take the hull's extent at the middle of the part of that half the hull spans, the others
+// at the upper half's; the hull's height range cuts by each sample's own height (a side of the hull that
+// slants within a half is taken at one height). Not the half's own middle: where the hull's top or bottom
+// edge crosses a half, that middle may lie outside the hull, and the half's samples inside it were all
+// dropped; a cube's columns lost 3 % of their samples that way, their shadow's penumbra too light (`cube` at
+// 64², level 0: mae_shadow 0.0096, 0.0023 without columns).
 uint sweep_row(Sweep s, int l) {
     float N = float(BITS), c = (float(MJ_PERM[l]) + 0.5) / N;
     float ymin = min(s.a0.y, s.a1.y), ymax = max(s.b0.y, s.b1.y);
@@ -469,7 +472,8 @@ uint sweep_row(Sweep s, int l) {
     uint in_range = MJ_AT_LEAST[t0] & ~MJ_AT_LEAST[t1];
     uint bits = 0u;
     for (int h = 0; h < 2; ++h) {
-        vec2 e = sweep_extent(s, (float(l) + 0.25 + 0.5 * float(h)) / N);
+        float lo = max((float(l) + 0.5 * float(h)) / N, ymin), hi = min((float(l) + 0.5 * float(h) + 0.5) / N, ymax);
+        vec2 e = sweep_extent(s, 0.5 * (lo + hi));
         int k0 = int(clamp(ceil(e.x * N - c), 0.0, N)), k1 = int(clamp(ceil(e.y * N - c), 0.0, N));
         uint half_ = h == 0 ? ~MJ_AT_LEAST[BITS / 2] & ROW_MASK : MJ_AT_LEAST[BITS / 2];
         bits |= e.x <= e.y ? bit_range(k0, k1) & half_ : 0u;
