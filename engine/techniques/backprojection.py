@@ -144,6 +144,15 @@ def bit_reversal(n: int) -> np.ndarray:
     return np.array([int(format(i, f"0{bits}b")[::-1], 2) for i in range(n)])
 
 
+def multi_jitter_defines(n: int) -> dict:
+    """visibility.comp's multi-jittered tables as GLSL array literals: MJ_PERM (P) and MJ_AT_LEAST[t], the
+    bitmask of the columns k with P[k] ≥ t, for t = 0 … n."""
+    p = bit_reversal(n)
+    at_least = [sum(1 << k for k in range(n) if p[k] >= t) for t in range(n + 1)]
+    return {"MJ_PERM_VALUES": f"int[{n}](" + ", ".join(str(int(v)) for v in p) + ")",
+            "MJ_AT_LEAST_VALUES": f"uint[{n + 1}](" + ", ".join(f"0x{m:x}u" for m in at_least) + ")"}
+
+
 def valid_mask(accumulation: str, round_: bool) -> np.ndarray:
     """(N, N) bool: samples inside the light's shape (the inscribed ellipse for round lights)."""
     pos = sample_positions(accumulation)
@@ -480,6 +489,8 @@ class Backprojection(Technique):
                    "REFIT": REFIT_NONE if primitive == PRIMITIVE_MICROQUAD else REFIT[o["bp_coarse_fit"]],
                    "COVERAGE": int(self._coverage(o)),
                    "SPLIT": int(self._split(o) > 0.0)}
+        if defines["MULTI_JITTER"]:
+            defines.update(multi_jitter_defines(bits))
         exits = lc.structures.get(SOLID_EXITS)
         if exits is not None and exits.pyramid is not None:      # None: the view holds no closed caster
             defines["COLUMNS"] = 1

@@ -365,21 +365,10 @@ struct Span {
 // k plus a per-row offset, so a rectangle's x bounds give one range of k (⌊A⌋ or ⌊A⌋ + 1 by whether P[l] lies
 // below a threshold); its y bounds cut only its first and last row, by a mask of the columns k whose P[k]
 // clears the threshold (MJ_AT_LEAST).
-#if BITS == 16
-const int MJ_PERM[16] = int[16](0, 8, 4, 12, 2, 10, 6, 14, 1, 9, 5, 13, 3, 11, 7, 15);
-const uint MJ_AT_LEAST[17] = uint[17](0xffffu, 0xfffeu, 0xfefeu, 0xfeeeu, 0xeeeeu, 0xeeeau, 0xeaeau, 0xeaaau,
-    0xaaaau, 0xaaa8u, 0xa8a8u, 0xa888u, 0x8888u, 0x8880u, 0x8080u, 0x8000u, 0x0000u);  // columns with P[k] ≥ t
-#elif BITS == 32
-const int MJ_PERM[32] = int[32](0, 16, 8, 24, 4, 20, 12, 28, 2, 18, 10, 26, 6, 22, 14, 30, 1, 17, 9, 25, 5, 21, 13,
-    29, 3, 19, 11, 27, 7, 23, 15, 31);
-const uint MJ_AT_LEAST[33] = uint[33](0xffffffffu, 0xfffffffeu, 0xfffefffeu, 0xfffefefeu, 0xfefefefeu, 0xfefefeeeu,
-    0xfeeefeeeu, 0xfeeeeeeeu, 0xeeeeeeeeu, 0xeeeeeeeau, 0xeeeaeeeau, 0xeeeaeaeau, 0xeaeaeaeau, 0xeaeaeaaau,
-    0xeaaaeaaau, 0xeaaaaaaau, 0xaaaaaaaau, 0xaaaaaaa8u, 0xaaa8aaa8u, 0xaaa8a8a8u, 0xa8a8a8a8u, 0xa8a8a888u,
-    0xa888a888u, 0xa8888888u, 0x88888888u, 0x88888880u, 0x88808880u, 0x88808080u, 0x80808080u, 0x80808000u,
-    0x80008000u, 0x80000000u, 0x00000000u);
-#else
-#error "the multi-jittered pattern is laid out for 16 x 16 and 32 x 32 samples"
-#endif
+// Both tables come from backprojection.multi_jitter_defines (the Python pattern's own permutation):
+// MJ_AT_LEAST[t] holds the columns k with P[k] ≥ t.
+const int MJ_PERM[BITS] = MJ_PERM_VALUES;
+const uint MJ_AT_LEAST[BITS + 1] = MJ_AT_LEAST_VALUES;
 
 struct Span {
     ivec4 x;                    // (⌊a.x·N⌋, its threshold on P[l], ⌊b.x·N⌋, its threshold)
