@@ -155,7 +155,8 @@ def test_a_stop_request_cancels_the_frame():
 def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
     """The per-light lit test and receiver box come from a GPU reduction (render/lit_bounds.comp); they must
     equal what the whole irradiance image read back gives: the exact float32 min and max of the lit pixels,
-    and the count of lit pixels with a direction at or below their horizon (what gates a sun's rim views)."""
+    the count of lit pixels with a direction at or below their horizon (what gates a sun's rim views), and the
+    distance from a point to the nearest lit pixel (what places a sphere light's REFERENCE samples)."""
     from penumbra.engine.core.shading import light_defines, light_uniforms
     from penumbra.engine.gpu.context import GpuWorker
     from penumbra.engine.gpu.frame import Frame
@@ -174,12 +175,13 @@ def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
             frame.dispatch("shading/irradiance.comp", light_uniforms(light), images={0: irradiance},
                            defines=light_defines(light))
             buffer = frame.buffer(bytes(pipeline._BOUNDS_BYTES))
-            gpu, none_counted = pipeline._lit_bounds(frame, irradiance, buffer)
-            hidden = [pipeline._lit_bounds(frame, irradiance, buffer, centre=c)[1] for c in centres]
+            gpu, none_counted, no_point = pipeline._lit_bounds(frame, irradiance, buffer, centres[0])
+            counted = [pipeline._lit_bounds(frame, irradiance, buffer, c, count_hidden=True) for c in centres]
+            hidden, nearest = [c[1] for c in counted], [c[2] for c in counted]
             lit = (frame.read(irradiance)[..., 3] > 0) & (frame.read(frame.gbuffer["g_position"])[..., 3] > 0)
             xyz = frame.read(frame.gbuffer["g_position"])[..., :3][lit]
             normals = [frame.read(frame.gbuffer[name])[..., :3][lit] for name in ("g_geometric", "g_normal")]
-            return gpu, none_counted, hidden, lit, xyz, normals
+            return gpu, none_counted, no_point, hidden, nearest, lit, xyz, normals
         finally:
             frame.release()
     # every visible face is horizontal, facing up: straight up is above every horizon, straight down and
@@ -187,8 +189,9 @@ def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
     # a point between the ground and the plate is above the ground's horizon only (points, w = 1)
     centres = np.array([[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, -1.0, 0.0], [1.0, 0.0, 0.0, 0.0],
                         [0.0, 0.0, -2.0, 1.0], [0.0, 0.0, 0.5, 1.0]])
-    gpu, none_counted, hidden, lit, xyz, (geometric, shading) = GpuWorker.get().submit(job).result()
-    assert none_counted == 0
+    gpu, none_counted, no_point, hidden, nearest, lit, xyz, (geometric, shading) = \
+        GpuWorker.get().submit(job).result()
+    assert none_counted == 0 and no_point is None
     if facing == "away":
         assert not lit.any() and gpu is None and hidden == [0] * len(centres)
         return
@@ -202,6 +205,8 @@ def test_lit_bounds_on_the_gpu_match_the_irradiance_image(facing):
     assert 0 < lit.sum() < lit.size if facing == "sideways" else lit.sum() > 0
     np.testing.assert_array_equal(gpu[0], xyz.min(axis=0).astype(np.float64))
     np.testing.assert_array_equal(gpu[1], xyz.max(axis=0).astype(np.float64))
+    for c, d in zip(centres, nearest):     # only points have a nearest pixel
+        assert d is None if not c[3] else np.isclose(d, np.linalg.norm(xyz - c[:3], axis=1).min(), rtol=1e-6)
 
 
 def test_the_gpu_is_synchronised_only_when_stage_times_are_asked(monkeypatch):
@@ -372,10 +377,11 @@ def test_a_view_of_a_split_light_computes_only_the_pixels_it_owns():
             owner_tex.write(owner.tobytes())
             buffer = frame.buffer(bytes(pipeline._BOUNDS_BYTES))
             boxes = []
-            boxes.append(pipeline._lit_bounds(frame, irradiance, buffer)[0])
+            centre = (*light.position, 1.0)
+            boxes.append(pipeline._lit_bounds(frame, irradiance, buffer, centre)[0])
             for index in (0, 1):
                 with frame.view_of(owner_tex, index):
-                    boxes.append(pipeline._lit_bounds(frame, irradiance, buffer)[0])
+                    boxes.append(pipeline._lit_bounds(frame, irradiance, buffer, centre)[0])
             return boxes, position[..., :3], owner
         finally:
             frame.release()

@@ -18,15 +18,22 @@ from penumbra.engine.render import pipeline
 from penumbra.engine.structures.depth_map import DEPTH_MAP
 from penumbra.engine.structures.solid_exits import SOLID_EXITS
 
+def _ground_and_box(box_lo, box_hi, light, camera, name, extra=()):
+    """The 4 m ground, a closed box from `box_lo` to `box_hi` and the `extra` parts under one light (bpy-free
+    scenes leave ObjectInfo.closed to the caller)."""
+    parts = [("Ground", stress.quad((0, 0, 0), 4.0), True, True),
+             ("Box", stress.box(box_lo, box_hi), True, True), *extra]
+    snap = stress.assemble(parts, [light], camera, name)
+    snap.objects[1].closed = True
+    return snap
+
+
 def _box_and_plate():
     """A floating closed box (top 0.8 m, bottom 0.2 m) and an open plate at 0.5 m over the ground, a square
     light 3 m up looking straight down: linear light depth is 3 − z everywhere."""
-    parts = [("Ground", stress.quad((0, 0, 0), 4.0), True, True),
-             ("Box", stress.box((-0.5, -0.3, 0.2), (0.1, 0.3, 0.8)), True, True),
-             ("Plate", stress.quad((0.6, 0.0, 0.5), 0.3), True, True)]
-    snap = stress.assemble(parts, [stress.area_light((0.0, 0.0, 3.0), size=1.0)], stress.camera(size=48), "box")
-    snap.objects[1].closed = True       # bpy-free scenes leave ObjectInfo.closed to the caller
-    return snap
+    return _ground_and_box((-0.5, -0.3, 0.2), (0.1, 0.3, 0.8), stress.area_light((0.0, 0.0, 3.0), size=1.0),
+                           stress.camera(size=48), "box",
+                           extra=[("Plate", stress.quad((0.6, 0.0, 0.5), 0.3), True, True)])
 
 
 @pytest.fixture(scope="module")
@@ -134,12 +141,9 @@ def test_columns_close_the_light_leak_in_a_post_shadow_under_a_low_light():
 
 def _standing_box(light_position):
     """A closed box standing on the ground under a 1.5 m square light aimed at its foot."""
-    parts = [("Ground", stress.quad((0, 0, 0), 4.0), True, True),
-             ("Box", stress.box((-0.4, -0.4, 0.0), (0.4, 0.4, 0.8)), True, True)]
-    snap = stress.assemble(parts, [stress.area_light(light_position, target=(0.0, 0.0, 0.0), size=1.5)],
+    return _ground_and_box((-0.4, -0.4, 0.0), (0.4, 0.4, 0.8),
+                           stress.area_light(light_position, target=(0.0, 0.0, 0.0), size=1.5),
                            stress.camera(eye=(0.5, -4.0, 4.0), size=64), "standing_box")
-    snap.objects[1].closed = True
-    return snap
 
 
 # level 0 gathers every texel of a wide penumbra: about 2 minutes a case on the CI machine, so with the slow sweeps

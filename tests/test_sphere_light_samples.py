@@ -34,15 +34,16 @@ def _light(radius: float):
 def test_a_wide_view_whose_near_depth_casters_pull_in_takes_the_ball_when_its_receivers_are_far():
     light = _light(0.06)
     wide = _view(3.5, 1e-4)                    # receivers 74° off the axis, casters around the light
-    assert _fills_ball(light, wide, False, lambda: 3.0)
+    assert _fills_ball(light, wide, False, 3.0)
     # receivers as near as the light is wide: the ball's depth spread is the larger error, the disk stays
-    assert not _fills_ball(light, wide, False, lambda: 0.05)
+    assert not _fills_ball(light, wide, False, 0.05)
     # a narrow view (a spot's cone) keeps the disk even with far receivers: cos θ stays near 1
-    assert not _fills_ball(_light(2.2), _view(0.3, 2.4), False, lambda: 2.4)
-    # a near depth that already decides does not ask for the receivers' distance
-    assert _fills_ball(light, _view(3.5, 2.0), False, lambda: pytest.fail("asked"))
+    assert not _fills_ball(_light(2.2), _view(0.3, 2.4), False, 2.4)
+    # without the receivers' distance the view's near depth decides
+    assert _fills_ball(light, _view(3.5, 2.0), False, None)
+    assert not _fills_ball(light, wide, False, None)
     # a light seen through several views always fills its ball
-    assert _fills_ball(light, _view(0.1, 1e-4), True, lambda: 0.01)
+    assert _fills_ball(light, _view(0.1, 1e-4), True, 0.01)
 
 
 SEED_24000 = {

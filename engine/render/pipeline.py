@@ -126,9 +126,9 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
         # Only an emitter with an extent can light what its centre does not reach (lightview.sun_rim_faces,
         # local_rim_lights): count such pixels on the GPU, for the techniques that take rim views
         rim = technique.rim_views and not light.is_delta
-        centre = ((*(-light.direction), 0.0) if light.kind == SUN else (*light.position, 1.0)) if rim else None
+        centre = (*(-light.direction), 0.0) if light.kind == SUN else (*light.position, 1.0)
         with t.stage("readback"):
-            receivers, hidden = _lit_bounds(frame, irradiance, bounds_buffer, centre=centre)
+            receivers, hidden, nearest = _lit_bounds(frame, irradiance, bounds_buffer, centre, count_hidden=rim)
         if receivers is None:
             stats["lights_skipped"] += 1        # reaches no visible pixel: nothing to build
             continue
@@ -172,7 +172,7 @@ def _render_lights(frame: Frame, technique) -> FrameResult:
             if parts is None:
                 points = None if lit_xyz is None else _with_lifted(lit_xyz, lifted)
                 rgb = _view_visibility(frame, technique, light, view, irradiance, receivers, casters, visibility,
-                                       stats, debug, points=points)
+                                       stats, debug, points=points, nearest=nearest)
             else:
                 rgb = _face_visibility(frame, technique, light, view, receivers, casters, parts, lit, lit_xyz,
                                        lifted, geometric[:, :3], irradiance, object_bounds, caster_objects,
@@ -218,37 +218,42 @@ def _sheet_light(frame: Frame, sheets: dict, position: np.ndarray, covered: np.n
     return texture
 
 
-_BOUNDS_BYTES = 32     # render/lit_bounds.comp: a count, encoded min and max xyz, the hidden count
-_BOUNDS_RESET = np.array([0] + [0xFFFFFFFF] * 3 + [0] * 3 + [0], np.uint32).tobytes()
+_BOUNDS_BYTES = 36     # render/lit_bounds.comp: a count, encoded min and max xyz, the hidden count, the nearest
+_BOUNDS_RESET = np.array([0] + [0xFFFFFFFF] * 3 + [0] * 3 + [0, 0xFFFFFFFF], np.uint32).tobytes()
 
 
-def _lit_bounds(frame: Frame, irradiance, buffer, centre=None):
-    """World box (lo, hi) of the covered pixels this light reaches, or None if it reaches none, and how many
-    of them have the light's `centre` at or below their horizon (0 when it is None; (x, y, z, 0): a world
-    unit vector towards a sun's centre, (x, y, z, 1): a point): reduced on the GPU (render/lit_bounds.comp),
-    so only 32 bytes are read back. Exactly the float32 min and max."""
+def _lit_bounds(frame: Frame, irradiance, buffer, centre, count_hidden: bool = False):
+    """Reduced on the GPU (render/lit_bounds.comp), so only 36 bytes are read back: the world box (lo, hi) of
+    the covered pixels this light reaches (exactly their float32 min and max), or None if it reaches none; with
+    `count_hidden`, how many of them have the light's `centre` at or below their horizon (else 0); and for a
+    point `centre` the distance from it to the nearest of them (None for a direction). `centre`: (x, y, z, 0),
+    a world unit vector towards a sun's centre, or (x, y, z, 1), a local light's position."""
     buffer.write(_BOUNDS_RESET)
     frame.dispatch("render/lit_bounds.comp",
-                   {"u_count_hidden": int(centre is not None),
-                    "u_light_centre": tuple(float(v) for v in centre) if centre is not None else (0, 0, 1, 0)},
+                   {"u_count_hidden": int(count_hidden), "u_light_centre": tuple(float(v) for v in centre)},
                    samplers={"g_irradiance": irradiance}, buffers={0: buffer})
     raw = np.frombuffer(buffer.read(), np.uint32)
     if raw[0] == 0:
-        return None, 0
-    enc = raw[1:7]          # invert lit_bounds.comp's ordered(): positives had the sign bit set
+        return None, 0, None
+    enc = raw[[1, 2, 3, 4, 5, 6, 8]]    # invert lit_bounds.comp's ordered(): positives had the sign bit set
     bits = np.where(enc & np.uint32(0x80000000), enc ^ np.uint32(0x80000000), ~enc).astype(np.uint32)
-    xyz = bits.view(np.float32).astype(np.float64)
-    return (xyz[:3], xyz[3:]), int(raw[7])
+    values = bits.view(np.float32).astype(np.float64)
+    return (values[:3], values[3:6]), int(raw[7]), float(values[6]) if centre[3] else None
 
 
 def _view_visibility(frame: Frame, technique, light, view, irradiance, receivers, casters, out, stats: dict,
-                     debug: dict, split: bool = False, points=None, share: float = 1.0):
+                     debug: dict, split: bool = False, points=None, share: float = 1.0, nearest=None):
     """One light view: build the structures the technique declares, then its visibility into `out`. Returns
     the technique's coloured visibility texture, if it made one. `points`: the view's lit points (and their
-    lifted points), where they were read back; `share`: the view's part of the light's lit pixels."""
+    lifted points), where they were read back; `share`: the view's part of the light's lit pixels; `nearest`:
+    the distance from a local light's centre to the nearest lit pixel (from `points` where they are given)."""
     t = frame.timings
+    if points is not None and len(points) and light.kind != SUN:
+        offsets = np.asarray(points, float) - np.asarray(light.position, float)
+        nearest = float(np.sqrt(np.min(np.einsum("ij,ij->i", offsets, offsets))))
     lc = LightContext(light, view, irradiance, receivers, casters, {**view.uniforms(), **frame.bias_uniforms},
-                      frame.receiver_sides, split=split, receiver_points=points, share=share)
+                      frame.receiver_sides, split=split, receiver_points=points, share=share,
+                      nearest_receiver=nearest)
     memory = stats.setdefault("structure_bytes", {})    # per structure: the largest light view's
     for need in structures.plan(technique.needs_for(frame.settings)):    # what the technique declares, once
         with t.stage("shadow_map"):

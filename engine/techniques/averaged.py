@@ -122,37 +122,24 @@ def light_samples(light: Light, n: int, seed: int = 0, ball: bool = False) -> np
     return q * light.radius
 
 
-def _fills_ball(light: Light, view, split: bool, nearest) -> bool:
+def _fills_ball(light: Light, view, split: bool, nearest: float | None) -> bool:
     """Whether a sphere light's samples fill its ball or its disk across the view axis. A receiver θ
     off the axis sees the disk foreshortened by cos θ, the ball never; but a ball point nearer or farther
     than the centre moves the ray to a receiver at distance d by up to r/d across its disk. The view's
     widest angle (1 − cos θ) against r over the nearest receiver's distance picks the smaller error: the disk
     for a narrow view (a spot's cone), the ball for a light whose receivers surround it (a room, or any light
     seen through cube faces: every one of its views keeps the ball, and a face's axis is not the light frame's
-    Z, across which the disk lies). The receivers' distance (`nearest()`, asked only when the view's near
-    depth does not already decide), not the view's near depth alone: casters around the light pull that to
-    nothing, and the disk then cut the penumbra on a wall 74° off the axis to cos 74° of its width (fuzz
-    24000: a monkey 0.44 m from a 0.06 m light inside a room; mae_shadow 0.057 at 128², 0.022 with the ball)."""
+    Z, across which the disk lies). The receivers' distance (`nearest`, LightContext.nearest_receiver; the
+    view's near depth where it is unknown), not the view's near depth alone: casters around the light pull
+    that to nothing, and the disk then cut the penumbra on a wall 74° off the axis to cos 74° of its width
+    (fuzz 24000: a monkey 0.44 m from a 0.06 m light inside a room; mae_shadow 0.057 at 128², 0.022 with the
+    ball). The nearest receiver is never nearer than the view's near plane, so the larger of the two decides."""
     if split or view.face is not None:
         return True
     t = float(np.max(np.abs(view.window)))
     foreshortening = 1.0 - 1.0 / float(np.hypot(1.0, t))
-    return foreshortening > light.radius / max(float(view.near), 1e-9) or \
-        foreshortening > light.radius / max(nearest(), 1e-9)
-
-
-def _nearest_receiver(frame, lc) -> float:
-    """Distance from the light's centre to the nearest receiver it reaches in this view: its lit points where
-    the pipeline read them back, else the lit pixels of the G-buffer."""
-    points = lc.receiver_points
-    if points is None or not len(points):
-        position = frame.read(frame.gbuffer["g_position"])
-        lit = (frame.read(lc.irradiance)[..., 3] > 0.0) & (position[..., 3] > 0.0)
-        points = position[lit][:, :3]
-    if not len(points):
-        return float(lc.view.near)
-    offsets = np.asarray(points, float) - np.asarray(lc.light.position, float)
-    return float(np.sqrt(np.min(np.einsum("ij,ij->i", offsets, offsets))))
+    distance = max(float(view.near), nearest if nearest is not None else 0.0)
+    return foreshortening > light.radius / max(distance, 1e-9)
 
 
 CONE_SAMPLES_MAX = 16         # cone_sample_count: at most this many times the setting's samples
@@ -380,7 +367,7 @@ class AveragedMaps(Technique):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
         ball = light.kind in (POINT, SPOT) and light.radius > 0.0 and \
-            _fills_ball(light, lc.view, lc.split, lambda: _nearest_receiver(frame, lc))
+            _fills_ball(light, lc.view, lc.split, lc.nearest_receiver)
         # A spot's samples on its disk lie where the cone lets some receiver see it, as many as keep ~n in
         # each receiver's footprint (cone_region, cone_sample_count)
         region = None if ball else cone_region(light, lc.receivers)

@@ -38,6 +38,9 @@ class LightContext:
     # budget meant for the light (SSM's ssm_budget) is split by, so that a light's stand-ins and cube faces
     # together cost no more than one view would.
     share: float = 1.0
+    # Distance from a local light's centre to the nearest lit point this view holds (None for a sun): what
+    # decides where a sphere light's REFERENCE samples lie (averaged._fills_ball).
+    nearest_receiver: float | None = None
     structures: dict = field(default_factory=dict)
     # A coloured visibility (RGBA32F texture, rgb per channel) for a textured light: Combined then uses it
     # channel by channel, while `out` keeps the scalar (luminance-weighted) visibility.

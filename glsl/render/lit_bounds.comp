@@ -3,7 +3,9 @@
 // instead of the whole irradiance image. With u_count_hidden it also counts the lit pixels that see the light's
 // centre at or below their horizon, by both normals: rim views are built only when there are such pixels
 // (engine/core/lightview.py sun_rim_faces and local_rim_lights, which make the exact test on the CPU), so the
-// normals are read back only then. The count errs on the side of more (a looser threshold).
+// normals are read back only then. The count errs on the side of more (a looser threshold). For a local light it
+// also keeps the distance from its centre to the nearest lit pixel (REFERENCE's choice of a sphere light's
+// sample region, averaged._fills_ball).
 // Floats are compared as order-preserving unsigned integers (sign bit flipped for positives, all bits for
 // negatives), so atomicMin/atomicMax on uints give the exact float32 minimum and maximum.
 #include "common/pixel.glsl"
@@ -13,6 +15,7 @@ layout(std430, binding = 0) buffer LitBounds {
     uint lo[3];     // encoded minimum x, y, z
     uint hi[3];     // encoded maximum x, y, z
     uint hidden;    // lit pixels with the light's axis point below their horizon (u_count_hidden only)
+    uint nearest;   // encoded distance from a local light's centre to the nearest lit pixel
 } result;
 
 uniform int u_count_hidden;
@@ -22,6 +25,7 @@ shared uint s_count;
 shared uint s_lo[3];
 shared uint s_hi[3];
 shared uint s_hidden;
+shared uint s_nearest;
 
 uint ordered(float f) {
     uint u = floatBitsToUint(f);
@@ -33,6 +37,7 @@ void main() {
     if (gl_LocalInvocationIndex == 0u) {
         s_count = 0u;
         s_hidden = 0u;
+        s_nearest = 0xFFFFFFFFu;
         for (int i = 0; i < 3; ++i) { s_lo[i] = 0xFFFFFFFFu; s_hi[i] = 0u; }
     }
     barrier();
@@ -44,8 +49,10 @@ void main() {
             atomicMin(s_lo[i], u);
             atomicMax(s_hi[i], u);
         }
+        vec3 to_centre = u_light_centre.w == 0.0 ? u_light_centre.xyz : u_light_centre.xyz - p;
+        if (u_light_centre.w != 0.0)
+            atomicMin(s_nearest, ordered(length(to_centre)));
         if (u_count_hidden != 0) {
-            vec3 to_centre = u_light_centre.w == 0.0 ? u_light_centre.xyz : u_light_centre.xyz - p;
             to_centre /= max(length(to_centre), 1e-30);
             if (dot(texelFetch(g_geometric, px, 0).xyz, to_centre) <= 1e-5
                     && dot(texelFetch(g_normal, px, 0).xyz, to_centre) <= 1e-5)
@@ -56,6 +63,7 @@ void main() {
     if (gl_LocalInvocationIndex == 0u && s_count > 0u) {    // one global update per work group
         atomicAdd(result.count, s_count);
         atomicAdd(result.hidden, s_hidden);
+        atomicMin(result.nearest, s_nearest);
         for (int i = 0; i < 3; ++i) {
             atomicMin(result.lo[i], s_lo[i]);
             atomicMax(result.hi[i], s_hi[i]);
