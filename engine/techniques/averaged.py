@@ -218,6 +218,20 @@ def _sphere_clip(light: Light, receivers) -> tuple:
     return ((c, r) if farthest > r else None), bool(nearest <= r)
 
 
+def _inside_receivers(light: Light, receivers, points) -> tuple:
+    """The receivers' box cut to the sphere light's box, and the points (world, N × 3, or None) inside its
+    sphere: what the samples on its surface serve (SIDE_INSIDE)."""
+    c, r = np.asarray(light.position, float), float(light.radius)
+    lo, hi = (np.asarray(b, float) for b in receivers)
+    lo, hi = np.maximum(lo, c - r), np.minimum(hi, c + r)
+    if points is not None:
+        points = np.asarray(points, float)
+        points = points[np.einsum("ij,ij->i", points - c, points - c) <= r * r * (1.0 + 1e-6)]
+        if not len(points):
+            points = None
+    return (lo, np.maximum(hi, lo)), points
+
+
 # An area light wider than this many times its distance to the receivers' centre gets solid-angle samples too
 # (`near_area_samples`): uniform points then put only a handful where a receiver's weights are.
 NEAR_AREA_RATIO = 4.0
@@ -422,7 +436,7 @@ class AveragedMaps(Technique):
         for set_offsets, set_relative, clip, side in sets:
             samples = self._samples(frame, lc, set_offsets, set_relative,
                                     size=delta_map_size(lc.view.size, int(s.option("averaged_light_samples")))
-                                    if light.is_delta else None)
+                                    if light.is_delta else None, inward=side == SIDE_INSIDE)
             if soft_disk:
                 # accumulate.comp soft_disk_weight: the axis of the disk the offsets lie on (the sample views'
                 # Z: each keeps the light's frame), none when they fill the ball
@@ -463,17 +477,22 @@ class AveragedMaps(Technique):
                        defines=skip[1])
 
     @staticmethod
-    def _samples(frame, lc, offsets, relative=None, size=None) -> list:
+    def _samples(frame, lc, offsets, relative=None, size=None, inward=False) -> list:
         """(view, sample position, emission axis, relative weight) per light sample: each map's view keeps the
         light's axes and is refitted from the sample point (a sun's turned towards its sample direction);
-        `size` (texels) instead of the centre view's."""
+        `size` (texels) instead of the centre view's. `inward`: the offsets lie on a true sphere's surface
+        and serve the receivers inside it, each map looking from its point towards the centre."""
         light = lc.light
         size = lc.view.size if size is None else size
         samples = []
+        receivers = lc.receivers
         # The lit points, where known, bound each sample's window tighter than their box, whose corners can
         # straddle a sample's plane where no lit point does (lightview.fit); their grid cells' corners, so
         # that N fits do not each project every pixel.
-        points = None if lc.receiver_points is None else lightview.cell_corners(lc.receiver_points)
+        points = lc.receiver_points
+        if inward:
+            receivers, points = _inside_receivers(light, receivers, points)
+        points = None if points is None else lightview.cell_corners(points)
         for i, offset in enumerate(offsets):
             if i % 64 == 0:
                 frame.progress.check()      # thousands of views take a while to fit: stay cancellable
@@ -484,9 +503,15 @@ class AveragedMaps(Technique):
                 sample_world, emit = light.position, tilted.direction
             else:
                 local = np.array([offset[0], offset[1], offset[2] if len(offset) > 2 else 0.0])
-                # A cube face keeps its turn: every sample's map looks the way the face looks.
-                view = lightview.fit(light, lc.receivers, lc.casters, size, origin_local=local,
-                                     frame=lc.view.frame, face=lc.view.face, receiver_points=points)
+                # A cube face keeps its turn: every sample's map looks the way the face looks. A point of a
+                # sphere's surface sees the receivers inside the sphere in the half space towards its centre,
+                # which its map holds only looking that way (the light's axis would leave out those behind
+                # it, and a receiver then lost the samples below it: too bright).
+                face = lc.view.face
+                if inward:      # (the offset and the turn are both in the light's frame)
+                    face = lightview.face_rotation(-local / max(float(np.linalg.norm(local)), 1e-30))
+                view = lightview.fit(light, receivers, lc.casters, size, origin_local=local,
+                                     frame=lc.view.frame, face=face, receiver_points=points)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
             samples.append((view, sample_world, emit, 1.0 if relative is None else float(relative[i])))
         return samples

@@ -138,7 +138,8 @@ void main() {
         ivec2 to = ivec2(floor(offset_at));
         bool offset_in_map = all(greaterThanEqual(to, ivec2(0))) && all(lessThan(to, u_map_size));
         // A surface sample whose view a receiver inside the sphere is behind, or off, cannot test it: left
-        // out, as counting it lit brightens every receiver the surface surrounds
+        // out, as counting it lit brightens every receiver the surface surrounds (each such view looks towards
+        // the centre, so only receivers almost in the sample's tangent plane, of little weight, fall off it)
         if (u_side == SIDE_INSIDE && !(offset_in_map && r.local.z < 0.0)) continue;
         // A receiver aimed into its own smooth triangle is lit off the map too: the sample views hold the
         // lifted starts (Technique.fits_sample_views), so it is off only where its window, cut to the part of
