@@ -67,6 +67,11 @@ float normalised_depth(float z) {
     return clamp((z - n) / (f - n), 0.0, 1.0);
 }
 
+// The depth that one step of z̃ spans.
+float depth_step() {
+    return (u_light_depth_range.y - u_light_depth_range.x) / 65535.0;
+}
+
 uint pack_depth_slopes(float z, uint q_xy) {
     uint zq = uint(round(normalised_depth(z) * 65535.0));
     return (zq << 16) | q_xy;

@@ -210,6 +210,11 @@ void main() {
         // and depth with the stored triangles (the terminator is handled below, as HARD handles it).
         vec3 surface = texelFetch(g_position, px, 0).xyz;
         Receiver r = make_receiver(surface, texelFetch(g_geometric, px, 0).xyz);
+        // The texel keeps its plane's depth in 16 bits over the view's depth range (texel.glsl): where that
+        // step is wider than the bias (a small window over casters many metres deep, fuzz 27002: 0.8 mm
+        // against 0.07 mm texels), the receiver's own triangle came out in front of it or behind it by
+        // the rounding alone, in stripes. The bias is at least one step.
+        r.bias = max(r.bias, depth_step());
         // The normal offset keeps its depth, not its sideways shift: at sub-texel precision that shift
         // (δ·tanθ on the receiver) moves outer shadow edges outwards.
         vec2 p = map_coords(light_local(surface)).xy;
