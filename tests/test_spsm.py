@@ -315,8 +315,8 @@ def test_a_small_window_over_deep_casters_keeps_the_receivers_own_triangles_lit(
     """The texel keeps its plane's depth in 16 bits over the view's depth range: with a window of centimetres
     over casters tens of metres deep (a camera close to a huge faceted object; fuzz 27002, a 15× Suzanne) one
     step is many texels wide, wider than the bias, and the receivers' own triangles came out in front of them
-    in stripes (39 % of this ball's lit top dark before the bias covered a step). A ray-traced hard shadow
-    lights every pixel."""
+    in stripes (39 % of this ball's lit top dark before such receivers were decided by the float depth map, as
+    HARD decides them). A ray-traced hard shadow lights every pixel."""
     ball = stress.sphere((0.0, 0.0, -20.0), 20.0, rings=24)
     snap = stress.assemble([("Ball", ball, True, True)], [stress.area_light((3.0, 1.0, 30.0), size=1e-3)],
                            stress.camera(eye=(0.3, -0.6, 0.6), target=(0.0, 0.0, 0.0), fov=2.0, size=48),

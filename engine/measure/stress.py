@@ -317,6 +317,16 @@ def eight_lights():
     return replace(snap, lights=lights)
 
 
+def zoomed_far():
+    """A 20 m faceted ball seen through a window of under a millimetre at its top (0.05° of view), a 0.3 mm
+    plate 0.5 mm over it, a 0.5 m light 30 m up: texels of a micrometre on a receiver 20–30 m from the
+    origin and the light, finer than float32 resolves there (light_view.glsl receiver_texel)."""
+    ball = sphere((0.0, 0.0, -20.0), 20.0, rings=8)
+    parts = [("Ball", ball, True, True), ("Plate", quad((0.0, 0.0, 5e-4), 1.5e-4), True, False)]
+    return assemble(parts, [area_light((3.0, 1.0, 30.0), size=0.5)],
+                    camera(eye=(0.3, -0.6, 0.6), target=(0.0, 0.0, 0.0), fov=0.05, near=0.1), "zoomed_far")
+
+
 # --- through bpy and scene.extract ------------------------------------------------------------------------
 
 def _bpy_scene():
@@ -433,6 +443,8 @@ CASES: list[Case] = [
     Case("light_in_box", light_in_box, "dark", "light inside a closed cube", tol=0.01),
     Case("camera_in_box", camera_in_box, "oracle", "camera inside a closed room", tol=0.06),
     Case("eight_lights", eight_lights, "oracle", "eight area lights", tol=0.06, oracle_samples=8),
+    Case("zoomed_far", zoomed_far, "oracle", "micrometre texels 20-30 m from the origin and light", tol=0.06,
+         oracle_samples=3),
     # Atty et al. appendix A: half-float additive accumulation loses increments once the sum is large; the
     # √M batching (and float32, the default) keep it. Only SSM reads these options; the rest ignore them.
     Case("fp16_accumulation", scaled_base, "precision", "SSM half-float accumulation vs float32, 256² map",

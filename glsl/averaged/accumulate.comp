@@ -111,7 +111,7 @@ void main() {
         // the receiver's own triangle, so the slope-scaled part of the bias (a tilted surface's depth across a
         // texel) is not needed here; at grazing light it reached 10 texels and hid a caster 1.3 cm from the
         // receiver (fuzz 8207: a cylinder through a flat-shaded ball, n·l 0.03). The constant part stays.
-        r.bias = u_bias * texel_world(max(r.map.z, 0.0)) * 0.5;
+        r.bias = u_bias * receiver_texel(p, r.start) * 0.5;
         // Two texels decide: the one the shadow ray's own start falls in, for casters far enough from the
         // receiver that their penumbra spans more than a fifth of a texel (`contact`: the light's extent seen
         // over the distance), and the one the normal offset moves the look-up to, for nearer casters. Far

@@ -49,6 +49,16 @@ float texel_world(float depth) {
     return u_light_ortho == 1 ? u_texel_tan : u_texel_tan * depth;
 }
 
+// The world size of one texel at a receiver (world p, light-local l), but never finer than what float32
+// tells apart there: positions, their light-local transform and the maps' depths each round to about 2^-23
+// of their magnitude, so a bias and normal offset scaled from a texel finer than a few such steps (a window
+// of millimetres over a receiver tens of metres from the origin or the light) let the surface shadow
+// itself in stripes. Far below any texel of an ordinary view (19 µm at 10 m).
+const float FLOAT_STEPS = 8.0;
+float receiver_texel(vec3 p, vec3 l) {
+    return max(texel_world(max(-l.z, 0.0)), FLOAT_STEPS * 1.1920929e-7 * (length(p) + length(l)));
+}
+
 // A receiver as the shadow-map techniques see it: its light-local position pushed off the surface along
 // the geometric normal (normal-offset bias), that normal in light space, its map coordinates (texels,
 // depth) and the slope-scaled depth bias to subtract before comparing with the map. `through_surface`: the
@@ -70,7 +80,7 @@ Receiver make_receiver(vec3 p, vec3 ng) {
     vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l);
     float cos_t = clamp(abs(dot(r.normal, to_light)), 1e-3, 1.0);
     float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
-    float texel = texel_world(max(-l.z, 0.0));
+    float texel = receiver_texel(p, l);
     r.start = l;
     r.local = l + r.normal * (u_normal_offset * texel);
     r.map = map_coords(r.local);

@@ -210,11 +210,6 @@ void main() {
         // and depth with the stored triangles (the terminator is handled below, as HARD handles it).
         vec3 surface = texelFetch(g_position, px, 0).xyz;
         Receiver r = make_receiver(surface, texelFetch(g_geometric, px, 0).xyz);
-        // The texel keeps its plane's depth in 16 bits over the view's depth range (texel.glsl): where that
-        // step is wider than the bias (a small window over casters many metres deep, fuzz 27002: 0.8 mm
-        // against 0.07 mm texels), the receiver's own triangle came out in front of it or behind it by
-        // the rounding alone, in stripes. The bias is at least one step.
-        r.bias = max(r.bias, depth_step());
         // The normal offset keeps its depth, not its sideways shift: at sub-texel precision that shift
         // (δ·tanθ on the receiver) moves outer shadow edges outwards.
         vec2 p = map_coords(light_local(surface)).xy;
@@ -228,7 +223,7 @@ void main() {
         vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l_local);
         if (any(lessThan(k, ivec2(0))) || any(greaterThanEqual(k, u_map_size)) || !tc.valid) {
             v = 1.0;                                        // nothing touches the texel: lit
-        } else if (dot(r.normal, to_light) < GRAZING_COS) {
+        } else if (dot(r.normal, to_light) < GRAZING_COS || depth_step() > r.bias) {
             // The triangle faces away from the light centre. Either the shadow terminator of a smooth mesh
             // (the shading normal faces the light, so its own mesh shadows it geometrically; Cycles lifts
             // such shadow rays off the flat triangle, its shadow-terminator geometry offset) or a receiver
@@ -236,7 +231,11 @@ void main() {
             // object must not shadow. Sub-texel tests against the surface point would shadow both; here
             // SPSM decides exactly as HARD does (hard_decision). So are receivers within 3° of edge-on (city's walls at 89.8°):
             // there one texel spans tens of texel-widths of depth and the sub-texel tests are
-            // ill-conditioned, while HARD's capped slope bias still holds.
+            // ill-conditioned, while HARD's capped slope bias still holds. And so are receivers whose bias
+            // is finer than one step of the texel's 16-bit plane depth, which spans the view's whole depth
+            // range (texel.glsl): a small window over casters many metres deep (fuzz 27002, a 15× Suzanne:
+            // a 0.8 mm step against 0.07 mm texels) put the receivers' own triangles in front of them by the
+            // rounding alone, in stripes, where HARD's float map holds.
             v = hard_decision(px);
         } else {
             float e = eta_at(tc, p);
