@@ -352,3 +352,21 @@ def test_failure_class_names_a_light_whose_emitter_crosses_a_caster():
         scene = fuzz.build(params, (16, 16))
         snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
         assert "light crosses a caster" in fuzz.failure_class(params, [], snap).split(", ")
+
+
+def test_fireflies_in_the_reference_are_told_from_hard_edges():
+    """A light Cycles' light tree picks with a tiny probability comes out as fireflies that each seed puts in
+    other pixels (fuzz 27032): the failure report names that class. A hard light edge, or a small lit patch,
+    is the same in both seeds and is not one."""
+    rng = np.random.default_rng(3)
+    mask = np.ones((32, 32), bool)
+    base = np.zeros((32, 32))
+    base[:, 16:] = 1.0                      # a hard edge: both seeds alike
+    base[3, 3] = 5.0                        # a small bright patch: both seeds alike
+    assert fuzz.firefly_share(base, base.copy(), mask) == 0.0
+    a, b = base + 0.01 * rng.random((32, 32)), base + 0.01 * rng.random((32, 32))
+    assert fuzz.firefly_share(a, b, mask) < 0.01
+    a[10, 20] += 200.0                      # one seed's fireflies carry a light the other misses there
+    b[25, 5] += 200.0
+    share = fuzz.firefly_share(a, b, mask)
+    assert share == pytest.approx(400.0 / (a.sum() + b.sum()), rel=0.05) and share > fuzz.FIREFLY_SHARE

@@ -375,6 +375,7 @@ class SceneReference:
     floor: dict
     floor_unshadowed: float
     seconds: float
+    fireflies: float = 0.0      # firefly_share of the two seeds' unshadowed renders
 
 
 def cycles_side(scene, width: int, height: int, samples: int = CYCLES_SAMPLES) -> SceneReference:
@@ -385,7 +386,8 @@ def cycles_side(scene, width: int, height: int, samples: int = CYCLES_SAMPLES) -
     b = cycles_visibility(scene, samples=samples, seed=1, width=width, height=height)
     mask = a.mask & b.mask
     floor = compare(b.visibility, a.visibility, mask)
-    return SceneReference(a, floor, unshadowed_error(b.unshadowed, a.unshadowed, mask), a.seconds + b.seconds)
+    return SceneReference(a, floor, unshadowed_error(b.unshadowed, a.unshadowed, mask), a.seconds + b.seconds,
+                          firefly_share(a.unshadowed, b.unshadowed, mask))
 
 
 def shadow_score(params: dict, technique: str, resolution=RESOLUTION, samples: int = CYCLES_SAMPLES,
@@ -410,10 +412,31 @@ def shadow_score(params: dict, technique: str, resolution=RESOLUTION, samples: i
     return m, bound(technique, cyc.floor["mae_shadow"], m["n_shadow"])
 
 
-def failure_class(params: dict, warnings: list[str], snap=None) -> str:
+FIREFLY_RATIO = 10.0    # a pixel this many times brighter in one seed's render than in the other's
+FIREFLY_SHARE = 0.1     # references with this share of their light in such pixels have not converged
+
+
+def firefly_share(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
+    """Share of two Cycles renders' light (luminance over `mask`; seeds 0 and 1 of one scene) that sits in
+    pixels where one is over FIREFLY_RATIO times the other: fireflies, which the other seed puts elsewhere.
+    A light that Cycles' light tree picks with a tiny probability beside others (a spot with a zero Z scale:
+    fuzz 27032, 16 % of the light, a few hundred pixels at up to 7800 times their share) comes out that way,
+    and the noise floor does not show it, as both seeds miss that light in the same pixels."""
+    def lum(x):
+        x = x[..., :3].mean(axis=-1) if x.ndim == 3 else x
+        return np.where(mask, np.nan_to_num(x.astype(np.float64)), 0.0)
+    la, lb = lum(a), lum(b)
+    hot = (la > FIREFLY_RATIO * lb) | (lb > FIREFLY_RATIO * la)
+    total = float(la.sum() + lb.sum())
+    return float(np.abs(la - lb)[hot].sum()) / total if total > 0.0 else 0.0
+
+
+def failure_class(params: dict, warnings: list[str], snap=None, cyc=None) -> str:
     """A first guess at why a scene fails, from what it contains (the report lists the examples); with the
-    extracted `snap`, also from its triangles."""
+    extracted `snap`, also from its triangles; with the Cycles side `cyc`, from its reference."""
     classes = []
+    if cyc is not None and cyc.fireflies > FIREFLY_SHARE:
+        classes.append("Cycles reference not converged (fireflies)")
     if snap is not None and crossing_lights(snap):
         classes.append("light crosses a caster")
     if any("treated as lit" in w for w in warnings):
@@ -588,7 +611,7 @@ def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = 
             status = "UNSHADOWED"
         warnings = list(result.warnings)
         row = Row(seed, desc, technique, float(mae), int(m["n_shadow"]), b, floor, float(u), u_bound, ms, status,
-                  failure_class(params, warnings, snap) if status != "ok" else "", warnings, m)
+                  failure_class(params, warnings, snap, cyc) if status != "ok" else "", warnings, m)
         rows.append(row)
         if status != "ok" and out_dir:
             save_failure(out_dir, scene, params, row, result.passes, cyc, blend=not saved)
