@@ -122,3 +122,25 @@ def test_reference_within_bound_for_receivers_spread_under_a_near_wide_light():
     print(f"mae_shadow {m['mae_shadow']:.4f} over {m['n_shadow']} px, bound {bound:.4f}")
     assert m["n_shadow"] > 300
     assert m["mae_shadow"] <= bound
+
+
+def test_samples_far_out_on_a_huge_light_still_see_the_receivers_they_are_walled_off_from():
+    """A point of a huge emitter far from the receivers sees them almost in its own plane, more than 80° off
+    the light's axis: a map that keeps the axis cannot hold them, and off the map counts as lit. Those maps look
+    at the receivers instead (averaged._facing_receivers; fuzz 27026, a 187 m ellipse light crossing a huge
+    cone: 0.854 -> 0.026). Here a 200 m square light 1 m over the ground, and a box open at the bottom around
+    the camera standing on the ground: every ray from the light to what the camera sees crosses the box's top
+    or a wall, so V = 0 (0.062 on average before, the far samples' light coming through; 0.0005 now)."""
+    from penumbra.engine.core.settings import RenderSettings
+    from penumbra.engine.measure import stress
+    from penumbra.engine.render import pipeline
+    walls = stress.box((-1.0, -1.0, 0.0), (1.0, 1.0, 0.8), inward=True)
+    walls = walls[~np.all(np.isclose(walls[:, :, 2], 0.0), axis=1)]       # no bottom: the ground is the floor
+    parts = [("Ground", stress.quad((0, 0, 0), 3.0), True, True), ("Walls", walls, True, True)]
+    snap = stress.assemble(parts, [stress.area_light((0.0, 0.0, 1.0), target=(0.0, 0.0, 0.0), size=200.0,
+                                                     power=1e6)],
+                           stress.camera(eye=(0.2, -0.3, 0.6), target=(0.0, 0.2, 0.0), fov=80.0, size=32), "walled")
+    r = pipeline.render(snap, RenderSettings(technique="REFERENCE", antialiasing=False).with_(
+        averaged_light_samples=64))
+    v = r.passes["Visibility"][..., 0]
+    assert v.mean() <= 0.01         # a few pixels where the walls meet the ground leak by the bias (README)

@@ -513,8 +513,36 @@ class AveragedMaps(Technique):
                 view = lightview.fit(light, receivers, lc.casters, size, origin_local=local,
                                      frame=lc.view.frame, face=face, receiver_points=points)
                 sample_world = (np.linalg.inv(view.view) @ np.array([0.0, 0.0, 0.0, 1.0]))[:3]
+                if view.clamped and not inward:
+                    # Receivers more than 80° off the light's axis as this point sees them (a point of a huge
+                    # emitter far from them sees them almost in its own plane) fall off a map that keeps the
+                    # axis, and off the map counts as lit: that point's map looks at them instead (fuzz 27026,
+                    # a 187 m ellipse light: REFERENCE 0.85, every sample 50 m out lighting a receiver that
+                    # a cone shadows). Kept where it still cannot hold them.
+                    view = _facing_receivers(light, view, local, sample_world, receivers, lc.casters, size,
+                                             points) or view
             samples.append((view, sample_world, emit, 1.0 if relative is None else float(relative[i])))
         return samples
+
+
+def _facing_receivers(light: Light, view, local, sample_world, receivers, casters, size, points):
+    """A view from the light-frame point `local` (world `sample_world`) turned to look at the centre of the
+    receivers (their points' box where known), or None when that view too is clamped."""
+    lo, hi = (np.asarray(b, float) for b in receivers) if points is None else (points.min(axis=0),
+                                                                               points.max(axis=0))
+    # the light's frame: lightview.fit made the view as (turn by the face) · (shift to the point) · that frame
+    turn, shift = np.eye(4), np.eye(4)
+    if view.face is not None:
+        turn[:3, :3] = view.face
+    shift[:3, 3] = -np.asarray(local, float)
+    world_to_light = np.linalg.inv(turn @ shift) @ view.view
+    towards = world_to_light[:3, :3] @ ((lo + hi) / 2.0 - np.asarray(sample_world, float))
+    length = float(np.linalg.norm(towards))
+    if length <= 0.0:
+        return None
+    turned = lightview.fit(light, receivers, casters, size, origin_local=local, frame=world_to_light,
+                           face=lightview.face_rotation(towards / length), receiver_points=points)
+    return None if turned.clamped else turned
 
 
 def delta_map_size(size: int, samples: int) -> int:
