@@ -493,6 +493,12 @@ class AveragedMaps(Technique):
         if inward:
             receivers, points = _inside_receivers(light, receivers, points)
         points = None if points is None else lightview.cell_corners(points)
+        # What a sample whose map cannot hold the receivers looks at instead (_facing_receivers), in the frame
+        # lightview.fit puts the offsets in: the centre of the receivers (their points' box where known).
+        lo, hi = receivers if points is None else (points.min(axis=0), points.max(axis=0))
+        aim = (np.asarray(lo, float) + np.asarray(hi, float)) / 2.0
+        world_to_light = lc.view.frame if lc.view.frame is not None else \
+            lightview.light_frame(light, (np.asarray(receivers[0], float) + np.asarray(receivers[1], float)) / 2.0)
         for i, offset in enumerate(offsets):
             if i % 64 == 0:
                 frame.progress.check()      # thousands of views take a while to fit: stay cancellable
@@ -519,24 +525,16 @@ class AveragedMaps(Technique):
                     # axis, and off the map counts as lit: that point's map looks at them instead (fuzz 27026,
                     # a 187 m ellipse light: REFERENCE 0.85, every sample 50 m out lighting a receiver that
                     # a cone shadows). Kept where it still cannot hold them.
-                    view = _facing_receivers(light, view, local, sample_world, receivers, lc.casters, size,
-                                             points) or view
+                    view = _facing_receivers(light, world_to_light, local, sample_world, aim, receivers,
+                                             lc.casters, size, points) or view
             samples.append((view, sample_world, emit, 1.0 if relative is None else float(relative[i])))
         return samples
 
 
-def _facing_receivers(light: Light, view, local, sample_world, receivers, casters, size, points):
-    """A view from the light-frame point `local` (world `sample_world`) turned to look at the centre of the
-    receivers (their points' box where known), or None when that view too is clamped."""
-    lo, hi = (np.asarray(b, float) for b in receivers) if points is None else (points.min(axis=0),
-                                                                               points.max(axis=0))
-    # the light's frame: lightview.fit made the view as (turn by the face) · (shift to the point) · that frame
-    turn, shift = np.eye(4), np.eye(4)
-    if view.face is not None:
-        turn[:3, :3] = view.face
-    shift[:3, 3] = -np.asarray(local, float)
-    world_to_light = np.linalg.inv(turn @ shift) @ view.view
-    towards = world_to_light[:3, :3] @ ((lo + hi) / 2.0 - np.asarray(sample_world, float))
+def _facing_receivers(light: Light, world_to_light, local, sample_world, aim, receivers, casters, size, points):
+    """A view from the light-frame point `local` (world `sample_world`) turned to look at the world point
+    `aim`, or None when that view too is clamped."""
+    towards = np.asarray(world_to_light, float)[:3, :3] @ (aim - np.asarray(sample_world, float))
     length = float(np.linalg.norm(towards))
     if length <= 0.0:
         return None
