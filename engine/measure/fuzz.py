@@ -422,10 +422,8 @@ def firefly_share(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     A light that Cycles' light tree picks with a tiny probability beside others (a spot with a zero Z scale:
     fuzz 27032, 16 % of the light, a few hundred pixels at up to 7800 times their share) comes out that way,
     and the noise floor does not show it, as both seeds miss that light in the same pixels."""
-    def lum(x):
-        x = x[..., :3].mean(axis=-1) if x.ndim == 3 else x
-        return np.where(mask, np.nan_to_num(x.astype(np.float64)), 0.0)
-    la, lb = lum(a), lum(b)
+    from .metrics import luminance
+    la, lb = (np.where(mask, np.nan_to_num(luminance(x)), 0.0) for x in (a, b))
     hot = (la > FIREFLY_RATIO * lb) | (lb > FIREFLY_RATIO * la)
     total = float(la.sum() + lb.sum())
     return float(np.abs(la - lb)[hot].sum()) / total if total > 0.0 else 0.0
