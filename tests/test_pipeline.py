@@ -255,6 +255,39 @@ def test_layered_depth_maps_equal_one_map_per_view():
         np.testing.assert_array_equal(array[k, :h, :w], m)
 
 
+def test_peeled_depth_layers_hold_the_surfaces_behind_the_nearest():
+    """Frame.render_depth_layers(behind=...) (REFERENCE's soft-falloff samples, SIDE_BEYOND_DISK): each texel
+    holds the nearest caster strictly behind the layer given, empty where there is none. Over a plane
+    floating above the ground: the plane, then the ground under it (and nothing beside it), then nothing."""
+    from penumbra.engine.core import lightview
+    from penumbra.engine.core.shader_constants import EMPTY_DEPTH
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    snap = floating_plane(32)
+    receivers = (np.array([-4.0, -4.0, 0.0]), np.array([4.0, 4.0, 0.0]))
+    casters = (np.array([-4.0, -4.0, 0.0]), np.array([4.0, 4.0, 1.0]))
+    views = [lightview.fit(snap.lights[0], receivers, casters, 64, origin_local=np.array([x, 0.0, 0.0]))
+             for x in (0.0, 0.3)]
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings())
+        try:
+            first = frame.render_depth_layers(views)
+            second = frame.render_depth_layers(views, behind=first)
+            third = frame.render_depth_layers(views, behind=second)
+            return [np.frombuffer(a.read(), np.float32).reshape(len(views), a.height, a.width).copy()
+                    for a in (first, second, third)]
+        finally:
+            frame.release()
+    first, second, third = GpuWorker.get().submit(job).result()
+    plane = np.abs(first - 2.0) < 1e-3             # the light is 3 m up, the plane 1 m: depth 2
+    ground = np.abs(first - 3.0) < 1e-3            # elsewhere the ground, or nothing past its edge
+    assert plane.sum() > 50 and ground.sum() > 1000 and (first[~(plane | ground)] > EMPTY_DEPTH).all()
+    np.testing.assert_allclose(second[plane], 3.0, atol=1e-3)
+    assert (second[~plane] > EMPTY_DEPTH).all()
+    assert (third > EMPTY_DEPTH).all()
+
+
 def test_casters_outside_a_light_view_are_not_drawn_into_it():
     """Frame.rasterise leaves out objects whose box lies wholly outside the view's clip volume; the map
     is the same as with every object drawn."""

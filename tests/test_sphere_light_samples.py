@@ -77,3 +77,40 @@ def test_reference_matches_cycles_on_a_wall_far_off_a_small_lights_axis_inside_a
     print(f"mae_shadow {m['mae_shadow']:.4f} bound {bound:.4f} floor {cyc.floor['mae_shadow']:.4f}")
     assert m["n_shadow"] > 100
     assert m["mae_shadow"] <= bound, f"mae_shadow {m['mae_shadow']:.4f} > {bound:.4f}"
+
+
+def test_clearance_is_a_lower_bound_of_the_distance_to_the_triangles():
+    """SceneSnapshot.clearance, which decides whether a soft-falloff light's ball holds geometry: never more
+    than the true distance (points spread over each triangle come no nearer than it), and exact above a wide
+    plane."""
+    from dataclasses import replace
+    from tests.synthetic import floating_plane
+    snap = floating_plane(16)
+    rng = np.random.default_rng(3)
+    tri = snap.positions.astype(np.float64)
+    w = rng.dirichlet(np.ones(3), 4000)
+    spread = np.einsum("ks,tsj->tkj", w, tri).reshape(-1, 3)
+    for point in rng.uniform(-5.0, 5.0, (40, 3)):
+        assert snap.clearance(point) <= np.min(np.linalg.norm(spread - point, axis=1)) + 1e-9
+    assert snap.clearance((0.0, 0.0, 3.0)) == pytest.approx(2.0)     # 2 m over the occluder's plane
+    empty = replace(snap, positions=np.zeros((0, 3, 3), np.float32), normals=np.zeros((0, 3, 3), np.float32),
+                    object_id=np.zeros(0, np.int32), albedo=np.zeros((0, 3), np.float32))
+    assert snap.clearance((0.0, 0.0, 0.0)) == 0.0 and empty.clearance((0.0, 0.0, 0.0)) == np.inf
+
+
+@pytest.mark.parametrize("radius,beyond", [(0.5, False), (2.5, True)])
+def test_soft_falloff_samples_serve_from_beyond_the_disk_only_where_the_ball_holds_geometry(radius, beyond):
+    """A soft-falloff point light 3 m over the ground, 2 m over a floating plane: its ball reaches the plane
+    at r = 2.5 and nothing at r = 0.5. SIDE_BEYOND_DISK (twice the samples, three map layers each) is for the
+    first only: the second keeps one set of ball samples, as before."""
+    from dataclasses import replace
+    from penumbra.engine.core.settings import RenderSettings
+    from penumbra.engine.render import pipeline
+    from tests.synthetic import floating_plane
+    snap = floating_plane(32)
+    light = replace(_light(radius), matrix=snap.lights[0].matrix)
+    r = pipeline.render(replace(snap, lights=[light]),
+                        RenderSettings(technique="REFERENCE").with_(averaged_light_samples=16))
+    assert r.stats.get("beyond_disk_samples", 0) == (32 if beyond else 0)
+    v = r.passes["Visibility"][..., 0]
+    assert np.isfinite(v).all() and (v >= 0.0).all() and (v <= 1.0).all() and (v < 0.99).any()

@@ -36,8 +36,9 @@ WEIGHT_NONE = 0             # plain average of the hard maps
 WEIGHT_AREA = 1             # cosθ_receiver · cosθ_light / d² (planar emitter)
 WEIGHT_SPHERE = 2           # cosθ_receiver / d² (sphere light's great disk)
 WEIGHT_SUN = 3              # cosθ_receiver (a sun sample: constant radiance over its uniform cone)
-# Which receivers a REFERENCE sample set serves (u_side): all, or those outside / inside a true sphere light.
-SIDE_ALL, SIDE_OUTSIDE, SIDE_INSIDE = 0, 1, 2
+# Which receivers a REFERENCE sample set serves (u_side): all, or those outside / inside a true sphere light;
+# or for a soft-falloff light whose ball holds geometry, each receiver from the samples beyond its facing disk.
+SIDE_ALL, SIDE_OUTSIDE, SIDE_INSIDE, SIDE_BEYOND_DISK = 0, 1, 2, 3
 
 # SSM compute scatter: fixed-point units per 1.0 of hidden light (2^24: ≤ 256 full occlusions fit a u32).
 FIXED_POINT = float(1 << 24)

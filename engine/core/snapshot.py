@@ -201,6 +201,18 @@ class SceneSnapshot:
         np.maximum.at(out[:, 1], ids, np.maximum.reduceat(hi, starts))
         return out
 
+    def clearance(self, point) -> float:
+        """A lower bound on the distance from `point` to the nearest triangle (inf without any): per
+        triangle the larger of its plane's distance and its centroid's less its farthest corner's."""
+        p, normal, area, _ = self._drawn_triangles()
+        if not len(p):
+            return float("inf")
+        x = np.asarray(point, np.float64)
+        plane = np.abs(np.einsum("ij,ij->i", x - p[:, 0], normal)) / area
+        centroid = p.mean(axis=1)
+        reach = np.linalg.norm(p - centroid[:, None], axis=2).max(axis=1)
+        return float(np.min(np.maximum(plane, np.linalg.norm(x - centroid, axis=1) - reach)))
+
     def _drawn_triangles(self, mask: np.ndarray | None = None):
         """The triangles (those selected by `mask`, all when None) that draw something (finite, non-zero
         area), in float64: corners (T, 3, 3), normals (T, 3, unnormalised, twice the area), areas ×2 (T,),

@@ -367,12 +367,14 @@ class Frame:
                        defines={"BACK_FACES": 1} if back_faces else None)
         return self.rasterise(target, prog, view.view, view.view_proj)
 
-    def render_depth_layers(self, views, clip_sphere=None):
+    def render_depth_layers(self, views, clip_sphere=None, behind=None):
         """Depth maps of the casters from each of `views` (at most MAX_DEPTH_LAYERS) as the layers of one
         R32F texture array (the largest view's size; a smaller map fills its layer's lower-left corner), in
         one draw: common/depth_layers.geom sends each triangle to every layer, and MIN blending keeps the
         nearest linear depth (NO_OCCLUDER where empty), texel for texel what render_depth_map gives.
-        `clip_sphere` (centre, radius): casters inside that sphere are left out."""
+        `clip_sphere` (centre, radius): casters inside that sphere are left out. `behind`: an array this call
+        made for the same views, whose depths each texel must lie behind (depth peeling: the next nearest
+        caster surface, NO_OCCLUDER where there is none)."""
         w, h = max(v.width for v in views), max(v.height for v in views)
         maps = self.texture_array((w, h, len(views)), 1)
         fbo = self.framebuffer([maps])
@@ -390,11 +392,15 @@ class Frame:
         if clip_sphere is not None:
             defines["CLIP_SPHERE"] = 1
             uniforms["u_clip_sphere"] = (*map(float, clip_sphere[0]), float(clip_sphere[1]) ** 2)
+        if behind is not None:
+            defines["PEEL"] = 1
         prog = program(self.worker, "common/depth_layers.vert", "common/depth.frag",
                        geometry="common/depth_layers.geom", defines=defines)
         layer_views = self.buffer(rec.tobytes())
         layer_views.bind_to_storage_buffer(0)
         set_uniforms(prog, uniforms)
+        if behind is not None:
+            bind_samplers(prog, {"u_in_front": behind})
         with gl_state(self.ctx, depth_test=False, cull=False, minimum=True):
             self.geometry.render(self.ctx, prog, "caster", position_only=True)
         self.give_back(layer_views)

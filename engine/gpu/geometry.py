@@ -176,6 +176,12 @@ class SceneGeometry:
         """Convex objects' face planes, whatever they hold (SceneSnapshot.convex_casters)."""
         return self._fact("convex_casters", lambda snap: snap.convex_casters)
 
+    def light_clearances(self) -> dict:
+        """Per local light (by name), a lower bound on the distance from its centre to the nearest triangle
+        (SceneSnapshot.clearance): whether its ball holds any geometry (REFERENCE's soft-falloff samples)."""
+        return self._fact("clearance", lambda snap: {light.name: snap.clearance(light.position)
+                                                     for light in snap.lights if light.kind != SUN})
+
     def render(self, ctx, prog, role: str, objects: frozenset | None = None, position_only: bool = False):
         """Draw `role` ("receiver" or "caster"), optionally only the given object indices, with `prog`."""
         fmt = "3f 24x" if position_only else VERTEX_FORMAT

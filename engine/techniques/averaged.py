@@ -18,8 +18,8 @@ import numpy as np
 from ..core import lightview
 from ..core.light_shape import light_half_extent, spot_cone_tans
 from ..core.shading import spot_uniforms
-from ..core.shader_constants import (SIDE_ALL, SIDE_INSIDE, SIDE_OUTSIDE, WEIGHT_AREA, WEIGHT_NONE, WEIGHT_SPHERE,
-                                     WEIGHT_SUN)
+from ..core.shader_constants import (SIDE_ALL, SIDE_BEYOND_DISK, SIDE_INSIDE, SIDE_OUTSIDE, WEIGHT_AREA, WEIGHT_NONE,
+                                     WEIGHT_SPHERE, WEIGHT_SUN)
 from ..core.snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 from ..gpu.frame import MAX_DEPTH_LAYERS
 from ..structures import need
@@ -140,6 +140,21 @@ def _fills_ball(light: Light, view, split: bool, nearest: float | None) -> bool:
     foreshortening = 1.0 - 1.0 / float(np.hypot(1.0, t))
     distance = max(float(view.near), nearest if nearest is not None else 0.0)
     return foreshortening > light.radius / max(distance, 1e-9)
+
+
+def _ball_holds_geometry(frame, lc) -> bool:
+    """Whether some triangle may lie inside a point or spot light's ball (the scene's clearance from its
+    centre, SceneSnapshot.clearance, or where that is not known, the receivers' and casters' boxes): then
+    shadow rays that end on Cycles' disk facing each receiver and rays that end at ball samples meet
+    different surfaces, and its samples serve each receiver from beyond that disk (SIDE_BEYOND_DISK)."""
+    light = lc.light
+    c, r = np.asarray(light.position, float), float(light.radius)
+    clearance = frame.geometry.light_clearances().get(light.name)
+    if clearance is not None:
+        return clearance < r
+    boxes = [b for b in (lc.receivers, lc.casters) if b is not None]
+    return any(np.linalg.norm(np.clip(c, np.asarray(b[0], float), np.asarray(b[1], float)) - c) < r
+               for b in boxes)
 
 
 CONE_SAMPLES_MAX = 16         # cone_sample_count: at most this many times the setting's samples
@@ -380,8 +395,10 @@ class AveragedMaps(Technique):
     def visibility(self, frame, lc, out):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
+        soft_disk = light.kind in (POINT, SPOT) and light.radius > 0.0 and light.use_soft_falloff
+        beyond_disk = soft_disk and _ball_holds_geometry(frame, lc)
         ball = light.kind in (POINT, SPOT) and light.radius > 0.0 and \
-            _fills_ball(light, lc.view, lc.split, lc.nearest_receiver)
+            (beyond_disk or _fills_ball(light, lc.view, lc.split, lc.nearest_receiver))
         # A spot's samples on its disk lie where the cone lets some receiver see it, as many as keep ~n in
         # each receiver's footprint (cone_region, cone_sample_count)
         region = None if ball else cone_region(light, lc.receivers)
@@ -419,7 +436,6 @@ class AveragedMaps(Technique):
         spot["u_light_extent"] = light_extent(light)
         true_sphere = light.kind in (POINT, SPOT) and light.radius > 0.0 and not light.use_soft_falloff
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
-        soft_disk = light.kind in (POINT, SPOT) and light.radius > 0.0 and light.use_soft_falloff
         spot["u_soft_disk"] = (0.0, 0.0, 0.0, -1.0)
         # Sample sets: every receiver from `offsets`, except for a true sphere, whose receivers outside it
         # read maps without the casters inside it and whose receivers inside it sample its surface.
@@ -428,9 +444,14 @@ class AveragedMaps(Technique):
             clip, inside = _sphere_clip(light, lc.receivers)
             sets = ([(offsets, relative, clip, SIDE_OUTSIDE)] if clip else []) + \
                    ([(sphere_surface(n, s.seed) * light.radius, None, None, SIDE_INSIDE)] if inside else [])
+        elif beyond_disk:
+            # each receiver takes only the samples beyond its facing disk, about half of them: twice as many
+            sets = [(light_samples(light, 2 * n_light, s.seed, ball=True), None, None, SIDE_BEYOND_DISK)]
+            frame.count(beyond_disk_samples=2 * n_light)
         total = sum(len(o) for o, *_ in sets)
-        # The classes come from the centre's map with every caster: not those of a true sphere's sets.
-        classes = lc.structures.get(LIT_UMBRA) if not true_sphere else None
+        # The classes come from the centre's map with every caster, whose rays end at the centre: not those of
+        # a true sphere's sets, nor of rays that end on a disk through geometry.
+        classes = lc.structures.get(LIT_UMBRA) if not (true_sphere or beyond_disk) else None
         skip = {}, {"EARLY_SKIP": 0}
         done = 0
         for set_offsets, set_relative, clip, side in sets:
@@ -456,20 +477,27 @@ class AveragedMaps(Technique):
             skip = ({"u_classes": classes.classes} if classes else {}), {"EARLY_SKIP": int(classes is not None)}
             # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
             largest = max(v.width * v.height for v, *_ in samples)
-            batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest))))
+            layers = 3 if side == SIDE_BEYOND_DISK else 1      # the maps and the two peeled behind them
+            batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest * layers))))
             for first in range(0, len(samples), batch):
                 frame.progress.check()
                 part = samples[first:first + batch]
                 with frame.timings.stage("shadow_map"):
-                    maps = frame.render_depth_layers([v for v, *_ in part], clip_sphere=clip)
+                    views = [v for v, *_ in part]
+                    maps = [frame.render_depth_layers(views, clip_sphere=clip)]
+                    while len(maps) < layers:
+                        maps.append(frame.render_depth_layers(views, behind=maps[-1]))
                 with frame.timings.stage("visibility"):
                     records = frame.buffer(_sample_records(part))
                     frame.dispatch("averaged/accumulate.comp", {
                         **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode,
                         "u_side": side, **spot},
-                        samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps, **skip[0]},
-                        images={0: sums}, buffers={1: records}, defines=skip[1])
-                frame.give_back(maps)           # the next batch draws into the same array
+                        samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps[0],
+                                  **{f"u_depth_maps_{k}": m for k, m in enumerate(maps[1:], 1)}, **skip[0]},
+                        images={0: sums}, buffers={1: records},
+                        defines={**skip[1], "BEYOND_DISK": int(layers > 1)})
+                for m in maps:
+                    frame.give_back(m)          # the next batch draws into the same arrays
                 frame.give_back(records)
                 done += len(part)
                 frame.progress.step(done / total, f"{light.name}: sample {done}/{total}")

@@ -9,8 +9,14 @@
 #include "common/spot.glsl"
 
 uniform sampler2DArray u_depth_maps;
+#if BEYOND_DISK
+// The next two caster surfaces behind each texel of u_depth_maps (depth peeling, NO_OCCLUDER where none)
+uniform sampler2DArray u_depth_maps_1;
+uniform sampler2DArray u_depth_maps_2;
+#endif
 // SIDE_ALL, or for a true sphere light SIDE_OUTSIDE (maps without the casters inside it: Cycles' rays end on
-// its surface) or SIDE_INSIDE (samples on its surface, every caster): the receivers this set serves.
+// its surface) or SIDE_INSIDE (samples on its surface, every caster), or for a soft-falloff light whose ball
+// holds geometry SIDE_BEYOND_DISK (beyond_disk_weight): the receivers this set serves.
 uniform int u_side;
 struct Sample {
     mat4 view;
@@ -55,6 +61,53 @@ float soft_disk_weight(vec3 p, vec3 to_light) {
     return dot(u_soft_disk.xyz, u_soft_disk.xyz) > 0.0 ? abs(dot(to_light, u_soft_disk.xyz)) : cos_facing;
 }
 
+// SIDE_BEYOND_DISK: a soft-falloff light whose ball holds geometry. A ball sample's ray from p meets Cycles'
+// disk facing p at some point D, but ends at the sample: where the sample lies short of the disk the map
+// cannot see the casters between it and D, and where it lies beyond, its map sees casters behind the disk,
+// which Cycles' ray never reaches (the walls of a room the ball reaches through). Only samples beyond the disk
+// serve p here, and the test looks past every surface between the sample and D (the peeled layers, `stored_
+// beyond`). Their density along the ray is the ball's beyond D, so each weighs the receiver's cosine over
+// its direction's density in solid angle from p, q = ∫ ρ t² dt over the chord's part beyond D, with ρ ∝
+// 1/√(L² − s²) at s along a chord of half length L from its middle at distance t_mid from p (averaged.
+// projected_disk_ball); then Σ w·v / Σ w converges to the receiver-cosine-weighted visibility over the
+// directions that meet the disk, the integrand of Cycles' soft falloff (soft_disk_weight). Returns 0 for a
+// sample short of p's disk or whose ray misses it, and D's distance along the ray in `t_disk`.
+float beyond_disk_weight(vec3 p, vec3 n, vec3 to_light, vec3 sample_at, out float t_disk) {
+    vec3 c = u_sphere_inside.xyz;
+    float r = u_soft_disk.w;
+    vec3 m = p - c;
+    float d = length(m);
+    t_disk = 0.0;
+    if (d <= 0.0) return 0.0;
+    m /= d;
+    float cos_facing = -dot(to_light, m);
+    if (cos_facing <= 0.0 || dot(sample_at - c, m) >= 0.0) return 0.0;
+    t_disk = d / cos_facing;
+    vec3 on_disk = p + to_light * t_disk - c;
+    if (dot(on_disk, on_disk) > r * r * 1.0001) return 0.0;
+    float t_mid = dot(c - p, to_light);
+    float half2 = r * r - max(d * d - t_mid * t_mid, 0.0);
+    if (half2 <= 0.0) return 0.0;
+    float half_chord = sqrt(half2);
+    float s = clamp(t_disk - t_mid, -half_chord, half_chord);
+    // ∫ from s to L of (s' + t_mid)² / √(L² − s'²) ds'
+    float q = (t_mid * t_mid + 0.5 * half2) * (1.5707963 - asin(s / half_chord))
+            + (2.0 * t_mid + 0.5 * s) * sqrt(max(half2 - s * s, 0.0));
+    return max(dot(n, to_light), 0.0) / max(q, 1e-30 * half2 * half_chord);
+}
+
+// The nearest caster depth at texel t of sample i's map beyond depth `from` (below every depth: the map's own).
+// With BEYOND_DISK the peeled layers behind it; a texel with three surfaces short of `from` counts as lit.
+float stored_beyond(ivec2 t, int i, float from) {
+    float z = texelFetch(u_depth_maps, ivec3(t, i), 0).r;
+#if BEYOND_DISK
+    if (z <= from) z = texelFetch(u_depth_maps_1, ivec3(t, i), 0).r;
+    if (z <= from) z = texelFetch(u_depth_maps_2, ivec3(t, i), 0).r;
+    if (z <= from) z = NO_OCCLUDER;
+#endif
+    return z;
+}
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px) || !pixel_lit(px)) return;
@@ -81,6 +134,7 @@ void main() {
         // the sample's direction, and its unoccluded contribution at p
         vec3 to_light;
         float w = 1.0;
+        float from = -NO_OCCLUDER;      // depths up to this in the maps are not between p and the light
         if (u_weight_mode == WEIGHT_SUN) {
             to_light = -s.emit.xyz;
             // sun sample (uniform over the cone): its radiance is constant, so only the receiver's cosine counts
@@ -96,7 +150,13 @@ void main() {
                 // spot's disk reaches p only from its footprint; see shading/irradiance.glsl). Inside a true
                 // sphere Cycles applies no cone.
                 if (u_spot_cos_half > -1.0 && !inside_sphere) w *= spot_attenuation(-to_light);
-                if (u_soft_disk.w > 0.0) w *= soft_disk_weight(p, to_light);
+                if (u_side == SIDE_BEYOND_DISK) {
+                    float t_disk;
+                    w = beyond_disk_weight(p, n, to_light, s.position.xyz, t_disk);
+                    if (w <= 0.0) continue;
+                    from = -(s.view * vec4(p + to_light * t_disk, 1.0)).z;
+                    if (u_spot_cos_half > -1.0) w *= spot_attenuation(-to_light);
+                } else if (u_soft_disk.w > 0.0) w *= soft_disk_weight(p, to_light);
                 if (u_side == SIDE_INSIDE) {
                     // uniform points of the surface seen from inside: dω = cosθ_surface·dA/d²; a spot's sphere
                     // is one-sided for BSDF rays (those towards its centre), which MIS weighs as much again
@@ -147,13 +207,13 @@ void main() {
         // (Taking it as stopped there darkened a wide spot's whole sliver of such pixels that Cycles lights:
         // fuzz seed 1071, 19 pixels at 1.0, tests/test_own_surface.py.)
         if (in_map) {
-            float stored = texelFetch(u_depth_maps, ivec3(t, i), 0).r;
+            float stored = stored_beyond(t, i, from);
             vec2 centre = vec2(t) + 0.5;
             float depth = receiver_depth_at(r, centre);
             if (stored < depth && depth - stored >= contact) v = 0.0;
         }
         if (v > 0.0 && offset_in_map) {
-            float stored = texelFetch(u_depth_maps, ivec3(to, i), 0).r;
+            float stored = stored_beyond(to, i, from);
             vec2 centre = vec2(to) + 0.5;
             float depth = receiver_depth_at(r, centre);
             if ((stored < depth && depth - stored < contact) || own_surface_blocks(r, stored, centre)) v = 0.0;

@@ -19,6 +19,9 @@ out float v_depth;
 #ifdef CLIP_SPHERE
 out vec3 v_position;            // world position, for common/depth.frag's sphere clip
 #endif
+#ifdef PEEL
+flat out int v_layer;           // which layer of the one in front common/depth.frag compares with
+#endif
 
 void main() {
     int layer = gl_InvocationID;
@@ -34,6 +37,9 @@ void main() {
         v_position = world.xyz;
 #endif
         gl_Layer = layer;
+#ifdef PEEL
+        v_layer = layer;
+#endif
         EmitVertex();
     }
     EndPrimitive();
