@@ -123,7 +123,8 @@ def light_samples(light: Light, n: int, seed: int = 0, ball: bool = False) -> np
 
 
 def _fills_ball(light: Light, view, split: bool, nearest: float | None) -> bool:
-    """Whether a sphere light's samples fill its ball or its disk across the view axis. A receiver θ
+    """Whether a sphere light's samples fill its ball or its disk across the view axis (a true sphere or a
+    soft-falloff spot; a soft-falloff point light's always fill the ball, Averaged.visibility). A receiver θ
     off the axis sees the disk foreshortened by cos θ, the ball never; but a ball point nearer or farther
     than the centre moves the ray to a receiver at distance d by up to r/d across its disk. The view's
     widest angle (1 − cos θ) against r over the nearest receiver's distance picks the smaller error: the disk
@@ -140,6 +141,14 @@ def _fills_ball(light: Light, view, split: bool, nearest: float | None) -> bool:
     foreshortening = 1.0 - 1.0 / float(np.hypot(1.0, t))
     distance = max(float(view.near), nearest if nearest is not None else 0.0)
     return foreshortening > light.radius / max(distance, 1e-9)
+
+
+# A soft-falloff light with receivers nearer than this many radii serves them from beyond their disks
+# (SIDE_BEYOND_DISK) even with nothing inside its ball: the ball points on a receiver's side of the centre see
+# it almost edge-on. A 1 m light over a floor with a box beside it (64², Cycles 1024 spp), all samples of the
+# ball against those beyond the disk: 1.3 m up (r/d 0.77) 0.025 -> 0.012, 2 m up 0.010 -> 0.008; a 0.6 m
+# light 1.3 m up 0.019 -> 0.011; a 0.3 m one the same (0.0112, 0.0115).
+NEAR_BALL = 2.5
 
 
 def _ball_holds_geometry(frame, lc) -> bool:
@@ -396,9 +405,16 @@ class AveragedMaps(Technique):
         s, light = frame.settings, lc.light
         n = 1 if light.is_delta else int(s.option("averaged_light_samples"))
         soft_disk = light.kind in (POINT, SPOT) and light.radius > 0.0 and light.use_soft_falloff
-        beyond_disk = soft_disk and _ball_holds_geometry(frame, lc)
+        holds_geometry = soft_disk and _ball_holds_geometry(frame, lc)
+        beyond_disk = holds_geometry or (soft_disk and lc.nearest_receiver is not None and
+                                         lc.nearest_receiver < NEAR_BALL * light.radius)
+        # A soft-falloff point light's samples always fill the ball, whose weights are exact in every
+        # direction (accumulate.comp soft_disk_weight); the disk across the view's axis is foreshortened for
+        # receivers off it (a 1 m light 3 m over a box's penumbra 0.9 m off the axis: 0.051 on the disk,
+        # 0.0105 in the ball). A spot keeps the choice, for its samples where the cone lets receivers see them.
         ball = light.kind in (POINT, SPOT) and light.radius > 0.0 and \
-            (beyond_disk or _fills_ball(light, lc.view, lc.split, lc.nearest_receiver))
+            (beyond_disk or (soft_disk and light.kind == POINT) or
+             _fills_ball(light, lc.view, lc.split, lc.nearest_receiver))
         # A spot's samples on its disk lie where the cone lets some receiver see it, as many as keep ~n in
         # each receiver's footprint (cone_region, cone_sample_count)
         region = None if ball else cone_region(light, lc.receivers)
@@ -451,7 +467,7 @@ class AveragedMaps(Technique):
         total = sum(len(o) for o, *_ in sets)
         # The classes come from the centre's map with every caster, whose rays end at the centre: not those of
         # a true sphere's sets, nor of rays that end on a disk through geometry.
-        classes = lc.structures.get(LIT_UMBRA) if not (true_sphere or beyond_disk) else None
+        classes = lc.structures.get(LIT_UMBRA) if not (true_sphere or holds_geometry) else None
         skip = {}, {"EARLY_SKIP": 0}
         done = 0
         for set_offsets, set_relative, clip, side in sets:
@@ -477,7 +493,8 @@ class AveragedMaps(Technique):
             skip = ({"u_classes": classes.classes} if classes else {}), {"EARLY_SKIP": int(classes is not None)}
             # Batches of maps rendered in one layered pass and accumulated in one dispatch (in sample order).
             largest = max(v.width * v.height for v, *_ in samples)
-            layers = 3 if side == SIDE_BEYOND_DISK else 1      # the maps and the two peeled behind them
+            # the maps, and where geometry lies inside the ball, the two surfaces peeled behind them
+            layers = 3 if side == SIDE_BEYOND_DISK and holds_geometry else 1
             batch = int(min(MAX_DEPTH_LAYERS, max(1, BATCH_BYTES // (4 * largest * layers))))
             for first in range(0, len(samples), batch):
                 frame.progress.check()
@@ -495,7 +512,7 @@ class AveragedMaps(Technique):
                         samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps[0],
                                   **{f"u_depth_maps_{k}": m for k, m in enumerate(maps[1:], 1)}, **skip[0]},
                         images={0: sums}, buffers={1: records},
-                        defines={**skip[1], "BEYOND_DISK": int(layers > 1)})
+                        defines={**skip[1], "PEELED": int(layers > 1)})
                 for m in maps:
                     frame.give_back(m)          # the next batch draws into the same arrays
                 frame.give_back(records)

@@ -9,7 +9,7 @@
 #include "common/spot.glsl"
 
 uniform sampler2DArray u_depth_maps;
-#if BEYOND_DISK
+#if PEELED
 // The next two caster surfaces behind each texel of u_depth_maps (depth peeling, NO_OCCLUDER where none)
 uniform sampler2DArray u_depth_maps_1;
 uniform sampler2DArray u_depth_maps_2;
@@ -44,51 +44,61 @@ uniform sampler2D u_classes;      // structures/lit_umbra.py: pixels proven lit 
 
 // Cycles' soft falloff samples the disk through the light centre facing p (kernel/light/point.h and spot.h,
 // the "oriented disk"): per unit of solid angle its integrand is the receiver's cosine over the directions
-// that meet that disk. The samples lie on another disk (the view's XY plane) or fill the ball, whose density
-// in solid angle is ∝ cosθ/d² at the disk they were drawn on (for the ball, whose projection along the ray
-// is a disk facing p, the facing disk's). So a sample weighs that cosine besides the receiver's cosine over
-// d², and nothing when its ray misses Cycles' disk. Far from the light (d ≫ r) both cosines are ~1 and every
-// ray meets the disk; at d ~ r they decide the weights (fuzz 63: a 2.2 m spot 2.4 m away).
-float soft_disk_weight(vec3 p, vec3 to_light) {
+// that meet that disk; a sample whose ray misses it weighs nothing. The caller's weight is the receiver's
+// cosine over d² (d² = `d2`, to the sample); this is the factor that makes it the receiver's cosine over the
+// samples' density in solid angle seen from p. Samples on a disk across the view's axis: that disk's cosine
+// (its density per solid angle ∝ cosθ/d²). Samples filling the ball (averaged.projected_disk_ball, density
+// ∝ 1/√(L² − s²) at s along a chord of half length L from its middle, t_mid from p): their density along
+// the ray's direction is ∫ ρ t² dt over the chord, π(t_mid² + L²/2), so the factor is d²/(t_mid² + L²/2).
+// Far from the light (d ≫ r) both come to ~1 over d²; at d ~ r they decide the weights (fuzz 63: a 2.2 m
+// spot 2.4 m away). The ball took the facing disk's cosine before, exact only far away: a 1 m light 1.3 m over
+// the floor (tests/test_sphere_light_samples.py), 0.033 -> 0.025 with the ball's samples.
+// Where the ray from p towards `to_light` meets Cycles' disk facing p: its distance from p, or -1 where it
+// misses the disk (or p is the centre).
+float facing_disk_distance(vec3 p, vec3 to_light) {
     vec3 m = p - u_sphere_inside.xyz;
     float d = length(m);
-    if (d <= 0.0) return 1.0;
-    m /= d;
-    float cos_facing = -dot(to_light, m);
-    if (cos_facing <= 0.0) return 0.0;
-    vec3 on_disk = p + to_light * (d / cos_facing) - u_sphere_inside.xyz;
-    if (dot(on_disk, on_disk) > u_soft_disk.w * u_soft_disk.w * 1.0001) return 0.0;
-    return dot(u_soft_disk.xyz, u_soft_disk.xyz) > 0.0 ? abs(dot(to_light, u_soft_disk.xyz)) : cos_facing;
+    float cos_facing = d > 0.0 ? -dot(to_light, m) / d : 0.0;
+    if (cos_facing <= 0.0) return -1.0;
+    vec3 on_disk = m + to_light * (d / cos_facing);
+    return dot(on_disk, on_disk) > u_soft_disk.w * u_soft_disk.w * 1.0001 ? -1.0 : d / cos_facing;
 }
 
-// SIDE_BEYOND_DISK: a soft-falloff light whose ball holds geometry. A ball sample's ray from p meets Cycles'
-// disk facing p at some point D, but ends at the sample: where the sample lies short of the disk the map
-// cannot see the casters between it and D, and where it lies beyond, its map sees casters behind the disk,
-// which Cycles' ray never reaches (the walls of a room the ball reaches through). Only samples beyond the disk
-// serve p here, and the test looks past every surface between the sample and D (the peeled layers, `stored_
-// beyond`). Their density along the ray is the ball's beyond D, so each weighs the receiver's cosine over
-// its direction's density in solid angle from p, q = ∫ ρ t² dt over the chord's part beyond D, with ρ ∝
-// 1/√(L² − s²) at s along a chord of half length L from its middle at distance t_mid from p (averaged.
-// projected_disk_ball); then Σ w·v / Σ w converges to the receiver-cosine-weighted visibility over the
-// directions that meet the disk, the integrand of Cycles' soft falloff (soft_disk_weight). Returns 0 for a
-// sample short of p's disk or whose ray misses it, and D's distance along the ray in `t_disk`.
+// The chord of the light's ball along the ray from p towards `to_light`: its middle's distance from p and
+// its half length squared (≤ 0 where the ray misses the ball).
+vec2 ball_chord(vec3 p, vec3 to_light) {
+    vec3 m = p - u_sphere_inside.xyz;
+    float t_mid = -dot(m, to_light);
+    return vec2(t_mid, u_soft_disk.w * u_soft_disk.w - max(dot(m, m) - t_mid * t_mid, 0.0));
+}
+
+float soft_disk_weight(vec3 p, vec3 to_light, float d2) {
+    if (p == u_sphere_inside.xyz) return 1.0;
+    if (facing_disk_distance(p, to_light) < 0.0) return 0.0;
+    if (dot(u_soft_disk.xyz, u_soft_disk.xyz) > 0.0) return abs(dot(to_light, u_soft_disk.xyz));
+    vec2 chord = ball_chord(p, to_light);
+    return d2 / max(chord.x * chord.x + 0.5 * max(chord.y, 0.0), 1e-30);
+}
+
+// SIDE_BEYOND_DISK: a soft-falloff light whose ball holds geometry, or with receivers within a few radii
+// (averaged.NEAR_BALL). A ball sample's ray from p meets Cycles' disk facing p at some point D, but ends at the
+// sample: where the sample lies short of the disk the map cannot see the casters between it and D, and where
+// it lies beyond, its map sees casters behind the disk, which Cycles' ray never reaches (the walls of a room
+// the ball reaches through). Only samples beyond the disk serve p here, and the test looks past every surface
+// between the sample and D (the peeled layers, `stored_beyond`). Their density along the ray is the ball's
+// beyond D, so each weighs the receiver's cosine over its direction's density in solid angle from p,
+// q = ∫ ρ t² dt over the chord's part beyond D (ρ as in soft_disk_weight); then Σ w·v / Σ w converges to
+// the receiver-cosine-weighted visibility over the directions that meet the disk, the integrand of Cycles'
+// soft falloff. Near receivers with nothing in the ball gain too: the ball points on their side of the centre
+// see them nearly edge-on. Returns 0 for a sample short of p's disk or whose ray misses it, and D's distance
+// along the ray in `t_disk`.
 float beyond_disk_weight(vec3 p, vec3 n, vec3 to_light, vec3 sample_at, out float t_disk) {
+    t_disk = facing_disk_distance(p, to_light);
     vec3 c = u_sphere_inside.xyz;
-    float r = u_soft_disk.w;
-    vec3 m = p - c;
-    float d = length(m);
-    t_disk = 0.0;
-    if (d <= 0.0) return 0.0;
-    m /= d;
-    float cos_facing = -dot(to_light, m);
-    if (cos_facing <= 0.0 || dot(sample_at - c, m) >= 0.0) return 0.0;
-    t_disk = d / cos_facing;
-    vec3 on_disk = p + to_light * t_disk - c;
-    if (dot(on_disk, on_disk) > r * r * 1.0001) return 0.0;
-    float t_mid = dot(c - p, to_light);
-    float half2 = r * r - max(d * d - t_mid * t_mid, 0.0);
-    if (half2 <= 0.0) return 0.0;
-    float half_chord = sqrt(half2);
+    if (t_disk < 0.0 || dot(sample_at - c, p - c) >= 0.0) return 0.0;
+    vec2 chord = ball_chord(p, to_light);
+    if (chord.y <= 0.0) return 0.0;
+    float t_mid = chord.x, half2 = chord.y, half_chord = sqrt(half2);
     float s = clamp(t_disk - t_mid, -half_chord, half_chord);
     // ∫ from s to L of (s' + t_mid)² / √(L² − s'²) ds'
     float q = (t_mid * t_mid + 0.5 * half2) * (1.5707963 - asin(s / half_chord))
@@ -97,10 +107,10 @@ float beyond_disk_weight(vec3 p, vec3 n, vec3 to_light, vec3 sample_at, out floa
 }
 
 // The nearest caster depth at texel t of sample i's map beyond depth `from` (below every depth: the map's own).
-// With BEYOND_DISK the peeled layers behind it; a texel with three surfaces short of `from` counts as lit.
+// With PEELED the peeled layers behind it; a texel with three surfaces short of `from` counts as lit.
 float stored_beyond(ivec2 t, int i, float from) {
     float z = texelFetch(u_depth_maps, ivec3(t, i), 0).r;
-#if BEYOND_DISK
+#if PEELED
     if (z <= from) z = texelFetch(u_depth_maps_1, ivec3(t, i), 0).r;
     if (z <= from) z = texelFetch(u_depth_maps_2, ivec3(t, i), 0).r;
     if (z <= from) z = NO_OCCLUDER;
@@ -156,7 +166,7 @@ void main() {
                     if (w <= 0.0) continue;
                     from = -(s.view * vec4(p + to_light * t_disk, 1.0)).z;
                     if (u_spot_cos_half > -1.0) w *= spot_attenuation(-to_light);
-                } else if (u_soft_disk.w > 0.0) w *= soft_disk_weight(p, to_light);
+                } else if (u_soft_disk.w > 0.0) w *= soft_disk_weight(p, to_light, d2);
                 if (u_side == SIDE_INSIDE) {
                     // uniform points of the surface seen from inside: dω = cosθ_surface·dA/d²; a spot's sphere
                     // is one-sided for BSDF rays (those towards its centre), which MIS weighs as much again
