@@ -9,9 +9,12 @@
 #include "common/spot.glsl"
 
 uniform sampler2DArray u_depth_maps;
-#if PEELED
-// The next two caster surfaces behind each texel of u_depth_maps (depth peeling, NO_OCCLUDER where none)
+#if PEELED > 0
+// The next caster surfaces behind each texel of u_depth_maps (depth peeling, NO_OCCLUDER where none): PEELED
+// of them
 uniform sampler2DArray u_depth_maps_1;
+#endif
+#if PEELED > 1
 uniform sampler2DArray u_depth_maps_2;
 #endif
 // SIDE_ALL, or for a true sphere light SIDE_OUTSIDE (maps without the casters inside it: Cycles' rays end on
@@ -107,12 +110,16 @@ float beyond_disk_weight(vec3 p, vec3 n, vec3 to_light, vec3 sample_at, out floa
 }
 
 // The nearest caster depth at texel t of sample i's map beyond depth `from` (below every depth: the map's own).
-// With PEELED the peeled layers behind it; a texel with three surfaces short of `from` counts as lit.
+// With PEELED the peeled layers behind it; a texel with every layer short of `from` counts as lit.
 float stored_beyond(ivec2 t, int i, float from) {
     float z = texelFetch(u_depth_maps, ivec3(t, i), 0).r;
-#if PEELED
+#if PEELED > 0
     if (z <= from) z = texelFetch(u_depth_maps_1, ivec3(t, i), 0).r;
+#endif
+#if PEELED > 1
     if (z <= from) z = texelFetch(u_depth_maps_2, ivec3(t, i), 0).r;
+#endif
+#if PEELED > 0
     if (z <= from) z = NO_OCCLUDER;
 #endif
     return z;
