@@ -80,7 +80,7 @@ def test_reference_matches_cycles_on_a_wall_far_off_a_small_lights_axis_inside_a
 
 
 def test_clearance_is_a_lower_bound_of_the_distance_to_the_triangles():
-    """SceneSnapshot.clearance, which decides whether a soft-falloff light's ball holds geometry: never more
+    """SceneSnapshot.clearances, which decides whether a soft-falloff light's ball holds geometry: never more
     than the true distance (points spread over each triangle come no nearer than it), and exact above a wide
     plane."""
     from dataclasses import replace
@@ -90,12 +90,13 @@ def test_clearance_is_a_lower_bound_of_the_distance_to_the_triangles():
     tri = snap.positions.astype(np.float64)
     w = rng.dirichlet(np.ones(3), 4000)
     spread = np.einsum("ks,tsj->tkj", w, tri).reshape(-1, 3)
-    for point in rng.uniform(-5.0, 5.0, (40, 3)):
-        assert snap.clearance(point) <= np.min(np.linalg.norm(spread - point, axis=1)) + 1e-9
-    assert snap.clearance((0.0, 0.0, 3.0)) == pytest.approx(2.0)     # 2 m over the occluder's plane
+    points = rng.uniform(-5.0, 5.0, (40, 3))
+    for point, bound in zip(points, snap.clearances(points)):
+        assert bound <= np.min(np.linalg.norm(spread - point, axis=1)) + 1e-9
+    assert snap.clearances([(0.0, 0.0, 3.0)])[0] == pytest.approx(2.0)     # 2 m over the occluder's plane
     empty = replace(snap, positions=np.zeros((0, 3, 3), np.float32), normals=np.zeros((0, 3, 3), np.float32),
                     object_id=np.zeros(0, np.int32), albedo=np.zeros((0, 3), np.float32))
-    assert snap.clearance((0.0, 0.0, 0.0)) == 0.0 and empty.clearance((0.0, 0.0, 0.0)) == np.inf
+    assert snap.clearances([(0.0, 0.0, 0.0)])[0] == 0.0 and empty.clearances([(0.0, 0.0, 0.0)])[0] == np.inf
 
 
 @pytest.mark.parametrize("radius,beyond", [(0.5, False), (2.5, True)])

@@ -201,17 +201,18 @@ class SceneSnapshot:
         np.maximum.at(out[:, 1], ids, np.maximum.reduceat(hi, starts))
         return out
 
-    def clearance(self, point) -> float:
-        """A lower bound on the distance from `point` to the nearest triangle (inf without any): per
-        triangle the larger of its plane's distance and its centroid's less its farthest corner's."""
+    def clearances(self, points) -> np.ndarray:
+        """For each of `points` (N × 3), a lower bound on its distance to the nearest triangle (inf without
+        any): per triangle the larger of its plane's distance and its centroid's less its farthest corner's."""
+        points = np.asarray(points, np.float64).reshape(-1, 3)
         p, normal, area, _ = self._drawn_triangles()
         if not len(p):
-            return float("inf")
-        x = np.asarray(point, np.float64)
-        plane = np.abs(np.einsum("ij,ij->i", x - p[:, 0], normal)) / area
+            return np.full(len(points), np.inf)
         centroid = p.mean(axis=1)
         reach = np.linalg.norm(p - centroid[:, None], axis=2).max(axis=1)
-        return float(np.min(np.maximum(plane, np.linalg.norm(x - centroid, axis=1) - reach)))
+        unit = normal / area[:, None]
+        return np.array([np.min(np.maximum(np.abs(np.einsum("ij,ij->i", x - p[:, 0], unit)),
+                                           np.linalg.norm(x - centroid, axis=1) - reach)) for x in points])
 
     def _drawn_triangles(self, mask: np.ndarray | None = None):
         """The triangles (those selected by `mask`, all when None) that draw something (finite, non-zero

@@ -178,9 +178,15 @@ class SceneGeometry:
 
     def light_clearances(self) -> dict:
         """Per local light (by name), a lower bound on the distance from its centre to the nearest triangle
-        (SceneSnapshot.clearance): whether its ball holds any geometry (REFERENCE's soft-falloff samples)."""
-        return self._fact("clearance", lambda snap: {light.name: snap.clearance(light.position)
-                                                     for light in snap.lights if light.kind != SUN})
+        (SceneSnapshot.clearances, the triangles read once for every light): whether its ball holds any
+        geometry (REFERENCE's soft-falloff samples)."""
+        def read(snap):
+            local = [light for light in snap.lights if light.kind != SUN]
+            if not local:
+                return {}
+            distances = snap.clearances([light.position for light in local])
+            return {light.name: float(d) for light, d in zip(local, distances)}
+        return self._fact("clearance", read)
 
     def render(self, ctx, prog, role: str, objects: frozenset | None = None, position_only: bool = False):
         """Draw `role` ("receiver" or "caster"), optionally only the given object indices, with `prog`."""

@@ -164,13 +164,16 @@ def _ball_holds_geometry(frame, lc) -> bool:
     shadow rays that end on Cycles' disk facing each receiver and rays that end at ball samples meet
     different surfaces, and its samples serve each receiver from beyond that disk (SIDE_BEYOND_DISK)."""
     light = lc.light
-    c, r = np.asarray(light.position, float), float(light.radius)
     clearance = frame.geometry.light_clearances().get(light.name)
     if clearance is not None:
-        return clearance < r
-    boxes = [b for b in (lc.receivers, lc.casters) if b is not None]
-    return any(np.linalg.norm(np.clip(c, np.asarray(b[0], float), np.asarray(b[1], float)) - c) < r
-               for b in boxes)
+        return clearance < light.radius
+    return any(_box_distance(light.position, b) < light.radius for b in (lc.receivers, lc.casters) if b is not None)
+
+
+def _box_distance(point, box) -> float:
+    """Distance from `point` to the world box (lo, hi): 0 inside it."""
+    c = np.asarray(point, float)
+    return float(np.linalg.norm(np.clip(c, np.asarray(box[0], float), np.asarray(box[1], float)) - c))
 
 
 CONE_SAMPLES_MAX = 16         # cone_sample_count: at most this many times the setting's samples
@@ -187,9 +190,7 @@ def cone_sample_count(light: Light, n: int, receivers, region_area: float | None
     inverse, up to CONE_SAMPLES_MAX times `n`."""
     if light.kind != SPOT or light.is_delta or light.radius <= 0.0 or n <= 1:
         return n
-    lo, hi = (np.asarray(b, float) for b in receivers)
-    c = np.asarray(light.position, float)
-    d = float(np.linalg.norm(np.clip(c, lo, hi) - c))
+    d = _box_distance(light.position, receivers)
     tx, ty = spot_cone_tans(light)
     footprint = np.pi * d * d * tx * ty
     area = np.pi * light.radius ** 2 if region_area is None else region_area
@@ -244,9 +245,8 @@ def _sphere_clip(light: Light, receivers) -> tuple:
     Measured: tests/test_enclosing_lights.py."""
     lo, hi = (np.asarray(b, float) for b in receivers)
     c, r = np.asarray(light.position, float), float(light.radius)
-    nearest = np.linalg.norm(np.clip(c, lo, hi) - c)
     farthest = np.linalg.norm(np.maximum(np.abs(lo - c), np.abs(hi - c)))
-    return ((c, r) if farthest > r else None), bool(nearest <= r)
+    return ((c, r) if farthest > r else None), _box_distance(c, receivers) <= r
 
 
 def _inside_receivers(light: Light, receivers, points) -> tuple:

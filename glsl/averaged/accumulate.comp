@@ -90,12 +90,12 @@ float soft_disk_weight(vec3 p, vec3 to_light, float d2) {
 // the ball reaches through). Only samples beyond the disk serve p here, and the test looks past every surface
 // between the sample and D (the peeled layers, `stored_beyond`). Their density along the ray is the ball's
 // beyond D, so each weighs the receiver's cosine over its direction's density in solid angle from p,
-// q = ∫ ρ t² dt over the chord's part beyond D (ρ as in soft_disk_weight); then Σ w·v / Σ w converges to
-// the receiver-cosine-weighted visibility over the directions that meet the disk, the integrand of Cycles'
-// soft falloff. Near receivers with nothing in the ball gain too: the ball points on their side of the centre
-// see them nearly edge-on. Returns 0 for a sample short of p's disk or whose ray misses it, and D's distance
-// along the ray in `t_disk`.
-float beyond_disk_weight(vec3 p, vec3 n, vec3 to_light, vec3 sample_at, out float t_disk) {
+// q = ∫ ρ t² dt over the chord's part beyond D (ρ as in soft_disk_weight): the factor on the caller's weight
+// (the receiver's cosine over d² = `d2`) is d²/q. Then Σ w·v / Σ w converges to the receiver-cosine-weighted
+// visibility over the directions that meet the disk, the integrand of Cycles' soft falloff. Near receivers
+// with nothing in the ball gain too: the ball points on their side of the centre see them nearly edge-on.
+// Returns 0 for a sample short of p's disk or whose ray misses it, and D's distance along the ray in `t_disk`.
+float beyond_disk_weight(vec3 p, vec3 to_light, vec3 sample_at, float d2, out float t_disk) {
     t_disk = facing_disk_distance(p, to_light);
     vec3 c = u_sphere_inside.xyz;
     if (t_disk < 0.0 || dot(sample_at - c, p - c) >= 0.0) return 0.0;
@@ -106,7 +106,7 @@ float beyond_disk_weight(vec3 p, vec3 n, vec3 to_light, vec3 sample_at, out floa
     // ∫ from s to L of (s' + t_mid)² / √(L² − s'²) ds'
     float q = (t_mid * t_mid + 0.5 * half2) * (1.5707963 - asin(s / half_chord))
             + (2.0 * t_mid + 0.5 * s) * sqrt(max(half2 - s * s, 0.0));
-    return max(dot(n, to_light), 0.0) / max(q, 1e-30 * half2 * half_chord);
+    return d2 / max(q, 1e-30 * half2 * half_chord);
 }
 
 // The nearest caster depth at texel t of sample i's map beyond depth `from` (below every depth: the map's own).
@@ -168,11 +168,12 @@ void main() {
                 // sphere Cycles applies no cone.
                 if (u_spot_cos_half > -1.0 && !inside_sphere) w *= spot_attenuation(-to_light);
                 if (u_side == SIDE_BEYOND_DISK) {
+                    // a sample that does not serve p, or lies below its horizon, is not counted at all
                     float t_disk;
-                    w = beyond_disk_weight(p, n, to_light, s.position.xyz, t_disk);
-                    if (w <= 0.0) continue;
+                    float beyond = beyond_disk_weight(p, to_light, s.position.xyz, d2, t_disk);
+                    if (beyond <= 0.0 || dot(n, to_light) <= 0.0) continue;
+                    w *= beyond;
                     from = -(s.view * vec4(p + to_light * t_disk, 1.0)).z;
-                    if (u_spot_cos_half > -1.0) w *= spot_attenuation(-to_light);
                 } else if (u_soft_disk.w > 0.0) w *= soft_disk_weight(p, to_light, d2);
                 if (u_side == SIDE_INSIDE) {
                     // uniform points of the surface seen from inside: dω = cosθ_surface·dA/d²; a spot's sphere
