@@ -185,3 +185,38 @@ def test_noise_floor_small_but_nonzero(scene, cache, ref):
     assert nf["n_shadow"] > 500
     assert 0.0 < nf["mae_shadow"] < 0.02, nf
     assert nf["pixel_match"] > 0.99
+
+
+def test_several_lights_are_rendered_one_at_a_time_and_summed(scene, cache):
+    """With a second light the reference renders each light alone (the other hidden) and sums them: Cycles is
+    deterministic for a seed, so the sum equals the two one-light references exactly. The lights come back
+    as they were, and the key tells it from a render of both at once (one light's key is the same either
+    way: test_cache_key_tracks_scene_content)."""
+    data = bpy.data.lights.new("Lamp", "POINT")
+    data.energy = 100.0
+    data.shadow_soft_size = 0.2
+    lamp = bpy.data.objects.new("Lamp", data)
+    lamp.location = (-1.0, 1.0, 2.0)
+    scene.collection.objects.link(lamp)
+    area = bpy.data.objects["Area"]
+    try:
+        kw = dict(samples=16, seed=0, width=32, height=32, cache_dir=cache)
+        n = R.render_count
+        both = R.cycles_visibility(scene, **kw)
+        assert R.render_count == n + 4
+        assert not lamp.hide_render and not area.hide_render
+        alone = []
+        for hidden in (lamp, area):
+            hidden.hide_render = True
+            alone.append(R.cycles_visibility(scene, **kw))
+            hidden.hide_render = False
+        for image in ("shadowed", "unshadowed"):
+            np.testing.assert_allclose(getattr(both, image), getattr(alone[0], image) + getattr(alone[1], image),
+                                       rtol=1e-5, atol=1e-7)
+        assert both.mask.sum() > alone[0].mask.sum() // 2
+        at_once = R.cycles_visibility(scene, **kw, per_light=False)
+        assert at_once.key != both.key
+        assert M.compare(at_once.visibility, both.visibility, both.mask)["mae_shadow"] < 0.1
+    finally:
+        bpy.data.objects.remove(lamp)
+        bpy.data.lights.remove(data)

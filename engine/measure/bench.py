@@ -215,7 +215,7 @@ def cycles_peer(scene, samples: int, width: int, height: int, ref, *, repeats: i
     for i in range(max(1, int(repeats))):
         with RenderTimer() as timer:
             peer = reference.cycles_visibility(scene, samples=samples, seed=PEER_SEED, width=width,
-                                               height=height, use_cache=False)
+                                               height=height, use_cache=False, per_light=False)
         times.append((timer.durations[0] if timer.durations else peer.seconds / 2.0) * 1000.0)
         pairs.append(peer.seconds * 1000.0)
         first = first or (peer, bool(timer.durations))

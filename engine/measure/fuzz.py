@@ -420,8 +420,10 @@ def firefly_share(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     """Share of two Cycles renders' light (luminance over `mask`; seeds 0 and 1 of one scene) that sits in
     pixels where one is over FIREFLY_RATIO times the other: fireflies, which the other seed puts elsewhere.
     A light that Cycles' light tree picks with a tiny probability beside others (a spot with a zero Z scale:
-    fuzz 27032, 16 % of the light, a few hundred pixels at up to 7800 times their share) comes out that way,
-    and the noise floor does not show it, as both seeds miss that light in the same pixels."""
+    fuzz 27032, 16 % of the light, a few hundred pixels at up to 7800 times their share) came out that way
+    before the reference rendered each light alone (reference._render_pair); a light whose own samples are
+    heavy-tailed still does, and the noise floor does not show it, as both seeds miss its light in the
+    same pixels."""
     from .metrics import luminance
     la, lb = (np.where(mask, np.nan_to_num(luminance(x)), 0.0) for x in (a, b))
     hot = (la > FIREFLY_RATIO * lb) | (lb > FIREFLY_RATIO * la)

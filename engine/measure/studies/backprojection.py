@@ -143,7 +143,7 @@ def perf(scene_name: str = "suzanne", size: int = 512, map_size: int = 1024, rep
     cycles = []
     equal = None
     for spp in cycles_samples:
-        peer = reference.cycles_visibility(sc, samples=spp, seed=7, use_cache=False)
+        peer = reference.cycles_visibility(sc, samples=spp, seed=7, use_cache=False, per_light=False)
         m = metrics.compare(peer.visibility, ref.visibility, ref.mask)
         cycles.append({"samples": spp, "time_ms": peer.seconds * 500.0, "mae_shadow": m["mae_shadow"]})
         log(f"cycles {spp} spp: {peer.seconds * 500.0:.0f} ms (half the shadowed/unshadowed pair), "
