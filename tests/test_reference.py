@@ -199,6 +199,7 @@ def test_several_lights_are_rendered_one_at_a_time_and_summed(scene, cache):
     lamp.location = (-1.0, 1.0, 2.0)
     scene.collection.objects.link(lamp)
     area = bpy.data.objects["Area"]
+    more = []
     try:
         kw = dict(samples=16, seed=0, width=32, height=32, cache_dir=cache)
         n = R.render_count
@@ -217,6 +218,14 @@ def test_several_lights_are_rendered_one_at_a_time_and_summed(scene, cache):
         at_once = R.cycles_visibility(scene, **kw, per_light=False)
         assert at_once.key != both.key
         assert M.compare(at_once.visibility, both.visibility, both.mask)["mae_shadow"] < 0.1
+        # past PER_LIGHT_MAX lights the scene's own render is kept (each light's costs about as much)
+        for i in range(R.PER_LIGHT_MAX - 1):
+            more.append(bpy.data.objects.new(f"Lamp{i}", data))
+            scene.collection.objects.link(more[-1])
+        key = dict(samples=16, seed=0, width=32, height=32, filter_width=R.POINT_FILTER_WIDTH)
+        assert R.scene_key(scene, **key, per_light=True) == R.scene_key(scene, **key, per_light=False)
     finally:
+        for ob in more:
+            bpy.data.objects.remove(ob)
         bpy.data.objects.remove(lamp)
         bpy.data.lights.remove(data)

@@ -8,8 +8,8 @@ surface replaced by a white Lambertian diffuse material and the world black:
               light: Cycles also reaches lights by BSDF-sampled diffuse rays, weighted by MIS; under a 172°
               sun, casters hidden from shadow rays only still took 24 % of the unshadowed light)
 
-A scene with several lights is rendered one light at a time and summed (each render twice: shadowed and
-unshadowed), as Cycles' light tree can give a degenerate light a tiny share of the samples (see
+A scene with two to PER_LIGHT_MAX lights is rendered one light at a time and summed (each render twice:
+shadowed and unshadowed), as Cycles' light tree can give a degenerate light a tiny share of the samples (see
 `_render_pair`).
 
 and returns V_ref = L(shadowed) / L(unshadowed) (L = Rec. 709 luminance). Because the material is white
@@ -67,6 +67,10 @@ CACHE_VERSION = 2     # 2: the unshadowed render hides casters from diffuse (MIS
 POINT_FILTER_WIDTH = 0.01
 # Default mask threshold, relative to the 99th percentile of the unshadowed luminance.
 DEFAULT_THRESHOLD = 1e-3
+
+# Scenes with up to this many lights are rendered one light at a time (_render_pair): the random scenes' 0-4
+# lights. Each light's render costs about what the scene's does, so a user's scene with more lights keeps one.
+PER_LIGHT_MAX = 4
 
 # Number of Cycles renders actually run in this process (cache hits do not count). Tests read it.
 render_count = 0
@@ -193,7 +197,7 @@ def scene_key(scene, *, samples: int, seed: int, width: int, height: int, filter
     put("penumbra-reference", CACHE_VERSION, bpy.app.version_string, int(samples), int(seed),
         int(width), int(height), str(filter_type), round(float(filter_width), 6))
     put("pixel_aspect", scene.render.pixel_aspect_x, scene.render.pixel_aspect_y)
-    if per_light and len(_render_lights(scene, view_layer)) > 1:
+    if per_light and 1 < len(_render_lights(scene, view_layer)) <= PER_LIGHT_MAX:
         put("per-light")        # one light's key is the same either way
 
     mesh_cache: dict[str, bytes] = {}
@@ -371,6 +375,8 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
     (fuzz seeds 26029, 27032) is picked so seldom that at 1024 spp some pixels hold none of its light and
     others several times it, while each light alone converges (its pick probability is 1)."""
     lights = _render_lights(scene, view_layer) if per_light else []
+    if len(lights) > PER_LIGHT_MAX:
+        lights = []
     with measurement_scene(scene, view_layer, width, height, "penumbra_ref_") as (st, tmpdir):
         _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width)
 
