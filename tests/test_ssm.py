@@ -377,3 +377,12 @@ def test_sloped_facets_of_a_sheet_the_receivers_see_from_the_lights_side():
     print(errors)
     assert errors[True] < 0.015
     assert errors[True] < 0.6 * errors[False]
+
+
+def test_refined_size_follows_the_penumbra_width_up_to_the_fine_size():
+    from penumbra.engine.structures.ssm_maps import PENUMBRA_TEXELS, refined_size
+    assert refined_size(256, 1024, work=100.0, patches=100) == 1024          # one texel a patch: hard
+    assert refined_size(256, 1024, work=400.0 * 4, patches=400) == int(256 * PENUMBRA_TEXELS / 2.0)
+    assert refined_size(256, 1024, work=25.0 * 100, patches=100) == 256       # 5 texels wide: soft enough
+    assert refined_size(256, 0, work=100.0, patches=100) == 256               # off
+    assert refined_size(256, 1024, work=0.0, patches=0) == 256                # nothing to scatter

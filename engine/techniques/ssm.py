@@ -46,6 +46,10 @@ Lights: rectangle and square exactly; disk, ellipse and sun (disk of directions)
 patch's rectangle of the light clipped to the round shape (glsl/ssm/patch.glsl light_share, ours); sphere lights
 (point/spot radius) and round lights seen from a cube face or a sun's rim view through their bounding rectangle.
 
+Map size (ours, `ssm_refine`): a light whose patches update a texel or two each is a point-like light, whose soft
+shadow map is a hard one; its maps are refined up to the shared Shadow Map Size (engine/structures/ssm_maps.py
+refined_size), so its edges are drawn as finely as HARD draws them.
+
 Steps 1–3 are per-light structures (engine/structures/ssm_maps.py: maps, patch list and the receiver mask;
 soft_shadow_map.py: the scatter), declared by `needs_for` with the options' parameters; this module projects.
 """
@@ -101,6 +105,10 @@ class SoftShadowMaps(Technique):
                "Ours: each occluder texel spans its surface between depths shared with its neighbours, and counts "
                "negatively where a receiver sees it from behind, so the summed patches neither gap nor overlap "
                "(off: the paper's flat micro-patches, which over-darken penumbrae of curved casters)"),
+        Option("ssm_refine", True, "Refine Hard Shadows",
+               "Ours: a light whose penumbrae span under 4 texels of the occluder map (a point-like light) gets "
+               "finer maps, up to the Shadow Map Size, so its hard shadow edges are no coarser than a hard shadow "
+               "map's (off: Occluder Map Size for every light, as in the paper)"),
         Option("ssm_budget", 200.0, "Work Budget (M)",
                "Millions of soft-shadow-map texel updates allowed per occluder map; above it the maps are "
                "made coarser (the paper's remedy for large penumbrae, §5.1)", 1.0, 1.0e5),
@@ -114,7 +122,8 @@ class SoftShadowMaps(Technique):
     def needs_for(self, s) -> tuple:
         return (need(SSM_MAPS, size=int(s.option("ssm_map_size")), budget=float(s.option("ssm_budget")) * 1e6,
                      two_pass=s.option("ssm_passes") == "TWO", light_aspect=s.option("ssm_texels") == "LIGHT",
-                     facets=bool(s.option("ssm_facets"))),
+                     facets=bool(s.option("ssm_facets")),
+                     fine_size=int(s.shadow_map_size) if s.option("ssm_refine") else 0),
                 need(SOFT_SHADOW_MAP, precision=s.option("ssm_precision"), method=s.option("ssm_scatter"),
                      weighted=s.option("ssm_weighting") == "IRRADIANCE"),
                 RECEIVER_MASK)
