@@ -391,3 +391,18 @@ def test_fireflies_in_the_reference_are_told_from_hard_edges():
     b[25, 5] += 200.0
     share = fuzz.firefly_share(a, b, mask)
     assert share == pytest.approx(400.0 / (a.sum() + b.sum()), rel=0.05) and share > fuzz.FIREFLY_SHARE
+
+
+def test_summary_reports_failures_error_and_frame_time_per_technique():
+    """The sweep's summary puts each technique's error beside its frame time (the user's error against run
+    time), and counts the failures by class; a crashed render (no time) leaves the medians alone."""
+    def row(seed, technique, mae, ms, status="ok", cls=""):
+        return fuzz.Row(seed, "s", technique, mae, 100, 0.1, 0.0, 0.0, 0.02, ms, status, cls)
+    rows = [row(1, "HARD", 0.01, 10.0), row(2, "HARD", 0.03, 30.0), row(3, "HARD", 0.5, 20.0, "OVER", "wide sun"),
+            row(1, "SSM", 0.02, 100.0), row(2, "SSM", math.nan, math.nan, "CRASH", "boom")]
+    text = fuzz.summary(rows).splitlines()
+    assert text[0].split() == ["HARD", "1/3", "over", "bound;", "median", "mae_shadow", "0.0300,", "90th", "pct",
+                               "0.4060;", "frame", "median", "20", "ms,", "90th", "pct", "28", "ms"]
+    assert text[1].split() == ["1", "wide", "sun"]
+    assert "1/2 over bound" in text[2] and "median mae_shadow 0.0200" in text[2] and "frame median 100 ms" in text[2]
+    assert text[3].split() == ["1", "boom"]

@@ -683,7 +683,8 @@ def run(seed: int, n: int, techniques=None, *, resolution=RESOLUTION, samples: i
 
 
 def summary(rows: list[Row]) -> str:
-    """Per technique: scenes over their bound, out of how many, and the failure classes."""
+    """Per technique: scenes over their bound, out of how many, its error and frame time (medians: a frame
+    that compiles shaders first is one of many), and the failure classes."""
     lines = []
     for t in dict.fromkeys(r.technique for r in rows):
         mine = [r for r in rows if r.technique == t]
@@ -693,6 +694,9 @@ def summary(rows: list[Row]) -> str:
             classes[r.failure_class] = classes.get(r.failure_class, 0) + 1
         maes = np.array([r.mae_shadow for r in mine if math.isfinite(r.mae_shadow)])
         med = f"median mae_shadow {np.median(maes):.4f}, 90th pct {np.percentile(maes, 90):.4f}" if maes.size else ""
+        times = np.array([r.ms for r in mine if math.isfinite(r.ms)])
+        if times.size:
+            med += f"; frame median {np.median(times):.0f} ms, 90th pct {np.percentile(times, 90):.0f} ms"
         lines.append(f"{t:<14} {len(bad):>4}/{len(mine)} over bound; {med}")
         for c, k in sorted(classes.items(), key=lambda kv: -kv[1]):
             lines.append(f"{'':<16}{k:>4} {c}")
