@@ -229,3 +229,29 @@ def test_several_lights_are_rendered_one_at_a_time_and_summed(scene, cache):
             bpy.data.objects.remove(ob)
         bpy.data.objects.remove(lamp)
         bpy.data.lights.remove(data)
+
+
+def test_lights_rendered_alone_are_every_light_that_renders(scene):
+    """A light hidden in the viewport still renders, so it is rendered alone too; a light that a collection
+    instance repeats cannot be hidden alone, and the lights then render together."""
+    data = bpy.data.lights.new("Spare", "POINT")
+    lamp = bpy.data.objects.new("Spare", data)
+    scene.collection.objects.link(lamp)
+    layer = bpy.context.view_layer
+    group = bpy.data.collections.new("LightGroup")
+    empty = bpy.data.objects.new("LightGroupInstance", None)
+    try:
+        lamp.hide_set(True)
+        assert {ob.name for ob in R._render_lights(scene, layer)} == {"Area", "Spare"}
+        lamp.hide_set(False)
+        group.objects.link(bpy.data.objects.new("InstancedLamp", data))
+        empty.instance_type = "COLLECTION"
+        empty.instance_collection = group
+        scene.collection.objects.link(empty)
+        layer.update()
+        assert R._render_lights(scene, layer) == []
+    finally:
+        for ob in (empty, lamp, *group.objects):
+            bpy.data.objects.remove(ob)
+        bpy.data.collections.remove(group)
+        bpy.data.lights.remove(data)

@@ -360,9 +360,18 @@ def _render_still(st, scene, view_layer, path: str) -> np.ndarray:
 
 
 def _render_lights(scene, view_layer) -> list:
-    """The light objects a render of `view_layer` includes."""
-    return [ob for ob in scene.objects
-            if ob.type == "LIGHT" and not ob.hide_render and ob.visible_get(view_layer=view_layer)]
+    """The light objects a render of `view_layer` may include, each of which hide_render can take out alone;
+    empty where some light cannot be (one instanced by a collection instance or a particle system), as a
+    light the list misses would be counted in every light's render. A light the viewport hides still renders,
+    so it is listed (a listed light that does not render only costs an empty render)."""
+    lights = [ob for ob in view_layer.objects if ob.type == "LIGHT" and not ob.hide_render]
+    names = {ob.name for ob in lights}
+    depsgraph = view_layer.depsgraph
+    depsgraph.update()
+    for inst in depsgraph.object_instances:
+        if inst.object.type == "LIGHT" and (inst.is_instance or inst.object.original.name not in names):
+            return []
+    return lights
 
 
 def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_width, view_layer,
