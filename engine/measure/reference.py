@@ -8,16 +8,16 @@ surface replaced by a white Lambertian diffuse material and the world black:
               light: Cycles also reaches lights by BSDF-sampled diffuse rays, weighted by MIS; under a 172°
               sun, casters hidden from shadow rays only still took 24 % of the unshadowed light)
 
-A scene with two to PER_LIGHT_MAX lights is rendered one light at a time and summed (each render twice:
-shadowed and unshadowed), as Cycles' light tree can give a degenerate light a tiny share of the samples (see
-`_render_pair`).
-
 and returns V_ref = L(shadowed) / L(unshadowed) (L = Rec. 709 luminance). Because the material is white
 Lambertian and only direct light is traced, this ratio is the irradiance-weighted visibility
 sum_i E_i V_i / sum_i E_i over all lights and all points of each light, which is what a soft-shadow
 technique estimates. Both renders use the same seed, so their light samples coincide: the ratio is
 then a ratio estimator over identical samples (much less noisy than two independent renders) and
 never exceeds 1 except by float rounding.
+
+A scene with two to PER_LIGHT_MAX lights is rendered one light at a time and summed (each light twice:
+shadowed and unshadowed), as Cycles' light tree can give a degenerate light a tiny share of the samples (see
+`_render_pair`).
 
 Pixel filter: Cycles spreads each pixel's samples over a filter footprint around the pixel centre;
 Penumbra shades one point per pixel, at its centre. The matching choice is a Gaussian filter of the
@@ -197,7 +197,7 @@ def scene_key(scene, *, samples: int, seed: int, width: int, height: int, filter
     put("penumbra-reference", CACHE_VERSION, bpy.app.version_string, int(samples), int(seed),
         int(width), int(height), str(filter_type), round(float(filter_width), 6))
     put("pixel_aspect", scene.render.pixel_aspect_x, scene.render.pixel_aspect_y)
-    if per_light and 1 < len(_render_lights(scene, view_layer)) <= PER_LIGHT_MAX:
+    if _lights_alone(scene, view_layer, per_light):
         put("per-light")        # one light's key is the same either way
 
     mesh_cache: dict[str, bytes] = {}
@@ -374,6 +374,13 @@ def _render_lights(scene, view_layer) -> list:
     return lights
 
 
+def _lights_alone(scene, view_layer, per_light: bool) -> list:
+    """The lights `_render_pair` renders one at a time: with `per_light`, two to PER_LIGHT_MAX of them
+    (_render_lights), else none."""
+    lights = _render_lights(scene, view_layer) if per_light else []
+    return lights if 1 < len(lights) <= PER_LIGHT_MAX else []
+
+
 def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_width, view_layer,
                  per_light: bool = False):
     """Render shadowed and unshadowed images; returns (shadowed, unshadowed, [seconds of each]).
@@ -383,9 +390,7 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
     light's share arrives in rare, heavily weighted samples: a spot with a zero Z scale beside another light
     (fuzz seeds 26029, 27032) is picked so seldom that at 1024 spp some pixels hold none of its light and
     others several times it, while each light alone converges (its pick probability is 1)."""
-    lights = _render_lights(scene, view_layer) if per_light else []
-    if len(lights) > PER_LIGHT_MAX:
-        lights = []
+    lights = _lights_alone(scene, view_layer, per_light)
     with measurement_scene(scene, view_layer, width, height, "penumbra_ref_") as (st, tmpdir):
         _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width)
 
@@ -405,7 +410,7 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
                         st.set(ob, "visible_diffuse", False)
             name = "unshadowed" if unshadowed else "shadowed"
             t0 = time.perf_counter()
-            if len(lights) > 1:
+            if lights:
                 total = None
                 for i, alone in enumerate(lights):
                     for ob in lights:
