@@ -417,8 +417,8 @@ def build(frame, lc, size: int, budget: float, two_pass: bool, light_aspect: boo
                                      facet_reach(view, facets))
             horizon_cut = _horizon_cut(frame, cut)
         work = sum(counted.works)
-        # Finer while the penumbrae stay under PENUMBRA_TEXELS (a point light's do at any size), never again
-        # once the budget has made the maps coarser.
+        # Finer while the penumbrae stay under PENUMBRA_TEXELS (a point light's do at any size); once a step
+        # gains under 10 %, or the budget has to make the maps coarser, never again.
         finer = refined_size(size, fine_size, work, sum(counted.counts)) if refining else size
         if finer > size * 1.1 and attempt < attempts - 1:
             counted.give_back(frame)
