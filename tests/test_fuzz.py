@@ -261,6 +261,17 @@ def test_zero_scale_spot_beside_another_light_as_in_cycles():
     assert m["mae_shadow"] < limit, (m["mae_shadow"], limit)
 
 
+def test_wide_light_over_a_floor_to_the_horizon_within_bound():
+    """Fuzz 29050: a 0.83 m soft point light 4 m over a floor that reaches the horizon, so its single view is
+    clamped and cube faces take the pixels past its window. Near the window's edge the sample maps REFERENCE
+    renders from points of the light missed floor pixels that a cylinder shades (off 120 of 256 maps, counted
+    lit): the single view now keeps only what a view from every point of the light holds
+    (pipeline._sample_margin). 0.070 before (bound 0.043), 0.034 after."""
+    m, limit = fuzz.shadow_score(fuzz.scene_params(29050), "REFERENCE")
+    assert m["n_shadow"] > 200
+    assert m["mae_shadow"] < limit, (m["mae_shadow"], limit)
+
+
 @pytest.mark.parametrize("angle", [3.0, math.pi], ids=["3rad", "180deg"])
 def test_wide_sun_visibility_as_in_cycles(angle):
     """Issue 10 item 5: a ball over the floor under a sun of 3 rad and 180°. REFERENCE samples the cone uniformly

@@ -1,5 +1,7 @@
 """Views per light: a light whose lit pixels do not fit one shadow map is seen through its single view plus
 cube faces, and no pixel is ever treated as lit because it fell outside every map."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -58,6 +60,26 @@ def test_the_single_view_keeps_a_point_only_if_it_holds_where_its_shadow_ray_sta
         face = lightview.fit(light, (both.min(axis=0), both.max(axis=0)), receivers, 256, frame=view.view,
                              face=rotation, receiver_points=both)
         assert not lightview.outside_view(face, both).any()
+
+
+def test_the_single_view_keeps_only_what_a_view_from_every_point_of_the_light_holds():
+    """With the light's extent as the margin, a point the clamped view holds within margin/depth of its window's
+    edge goes to a cube face: a view from a point of the light that far off the centre, looking the same way,
+    holds every point the single view keeps (REFERENCE's sample maps look from there)."""
+    light, pts, receivers, view = _scattered_receivers(np.random.default_rng(3))
+    margin = 0.3 * np.sqrt(2.0)             # the 0.6 m square's half diagonal
+    plain = lightview.split_faces(view, pts)
+    faces = lightview.split_faces(view, pts, margin=margin)
+    kept = faces[0][1]
+    assert (plain[0][1] & ~kept).any(), "some points must leave the single view, or this test shows nothing"
+    assert (np.sum([mask for _, mask in faces], axis=0) == 1).all()
+    to_world = np.linalg.inv(view.view)
+    for corner in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        shifted = view.view.copy()
+        offset = to_world[:3, :3] @ np.array([corner[0] * 0.3, corner[1] * 0.3, 0.0])
+        shifted[:3, 3] -= view.view[:3, :3] @ offset          # the same view, its eye moved by `offset`
+        moved = dataclasses.replace(view, view=shifted)
+        assert not lightview.outside_view(moved, pts[kept]).any()
 
 
 def test_a_view_that_holds_every_point_is_not_split():

@@ -231,22 +231,27 @@ def face_rotation(direction) -> np.ndarray:
     return np.stack([x, y, z])         # rows: the view's axes in the light's frame
 
 
-def outside_view(view: LightView, points: np.ndarray) -> np.ndarray:
-    """Which world points (N, 3) fall outside the view's map (behind the eye or past the window)."""
+def outside_view(view: LightView, points: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """Which world points (N, 3) fall outside the view's map (behind the eye or past the window); with
+    `margin` (metres, perspective views), also those that a view from a point up to `margin` off its eye,
+    looking the same way, would not hold: within margin / depth of the window's edge."""
     local = to_local(view.view, points)
     x0, x1, y0, y1 = view.window
     if view.is_ortho:
         w = local[:, :2]
         behind = np.zeros(len(points), bool)
+        m = np.zeros(len(points))
     else:
         depth = -local[:, 2]
         behind = depth <= 0.0
-        w = local[:, :2] / np.where(behind, 1.0, depth)[:, None]
-    return behind | (w[:, 0] < x0) | (w[:, 0] > x1) | (w[:, 1] < y0) | (w[:, 1] > y1)
+        safe = np.where(behind, 1.0, depth)
+        w = local[:, :2] / safe[:, None]
+        m = margin / safe
+    return behind | (w[:, 0] < x0 + m) | (w[:, 0] > x1 - m) | (w[:, 1] < y0 + m) | (w[:, 1] > y1 - m)
 
 
-def split_faces(view: LightView, points: np.ndarray,
-                lifted: np.ndarray | None = None) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
+def split_faces(view: LightView, points: np.ndarray, lifted: np.ndarray | None = None,
+                margin: float = 0.0) -> list[tuple[np.ndarray | None, np.ndarray]] | None:
     """When a light's single view had to be clamped and some lit points (N, 3, world) fall outside it: the views
     that hold them all, as
     [(rotation from the light's frame, or None for the single view itself; mask of the points it owns)].
@@ -255,12 +260,14 @@ def split_faces(view: LightView, points: np.ndarray,
     point. None when the view was not clamped (its window holds every receiver a caster can shadow, so a
     point outside it is lit for certain), when it holds every point, and for orthographic views. `lifted`
     (N, 3): where each point's shadow ray leaves it (the terminator lift); the single view keeps a point
-    only if it holds that too, the face that owns it is chosen by the point itself."""
+    only if it holds that too, the face that owns it is chosen by the point itself. `margin` (metres): the
+    single view keeps only points that views from the light's points up to that far off its centre hold too
+    (REFERENCE's sample maps look from there; outside_view)."""
     if view.is_ortho or not view.clamped or len(points) == 0:
         return None
-    outside = outside_view(view, points)
+    outside = outside_view(view, points, margin)
     if lifted is not None:
-        outside |= outside_view(view, lifted)
+        outside |= outside_view(view, lifted, margin)
     if not outside.any():
         return None
     local = to_local(view.view, points)

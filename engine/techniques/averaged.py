@@ -613,13 +613,13 @@ SKIP_TEXEL_RATIO = 2.0          # early skip: the largest sample-map texel allow
 
 
 def _sample_records(part) -> bytes:
-    """averaged/accumulate.comp's Sample structs (std430, 144 bytes each)."""
+    """averaged/accumulate.comp's Sample structs (std430, 144 bytes each); size.z: the view is clamped."""
     rec = np.zeros((len(part), 36), np.float32)
     for k, (view, position, emit, relative) in enumerate(part):
         u = view.uniforms()
         rec[k, 0:16] = u["u_light_view"]
         rec[k, 16:20] = u["u_light_window"]
         rec[k, 20:24] = (*u["u_light_depth_range"], u["u_texel_tan"], u["u_light_ortho"])
-        rec[k, 24:26] = np.array(u["u_map_size"], np.int32).view(np.float32)
+        rec[k, 24:27] = np.array((*u["u_map_size"], int(view.clamped)), np.int32).view(np.float32)
         rec[k, 28:31], rec[k, 32:35], rec[k, 35] = position, emit, relative
     return rec.tobytes()

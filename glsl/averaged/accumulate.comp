@@ -25,7 +25,7 @@ struct Sample {
     mat4 view;
     vec4 window;
     vec4 range_tan_ortho;   // near, far, texel tan, ortho (0/1)
-    ivec4 size;             // map size (xy)
+    ivec4 size;             // map size (xy); z: 1 where the view is clamped (lightview.fit: some receivers off it)
     vec4 position;          // world position of the sample (perspective views)
     vec4 emit;              // light's emission axis (world); a sun's: this sample's direction; w: the sample's
                             // weight against a uniform one (1/pdf, techniques/averaged.py near_area_samples)
@@ -219,6 +219,12 @@ void main() {
         // out, as counting it lit brightens every receiver the surface surrounds (each such view looks towards
         // the centre, so only receivers almost in the sample's tangent plane, of little weight, fall off it)
         if (u_side == SIDE_INSIDE && !(offset_in_map && r.local.z < 0.0)) continue;
+        // Off a clamped view (one whose ±80° window could not hold its receivers) a receiver may still be
+        // shadowed: that sample cannot test it and is left out. A point light's view whose receivers span a
+        // floor to the horizon keeps the pixels inside the centre's window, while the windows from points of
+        // a wide light miss those near its edge (fuzz 29050: a 0.83 m light, floor pixels off 120 of 256
+        // sample maps, lit where a cylinder shades them).
+        if (s.size.z != 0 && !in_map && !offset_in_map) continue;
         // A receiver aimed into its own smooth triangle is lit off the map too: the sample views hold the
         // lifted starts (Technique.fits_sample_views), so it is off only where its window, cut to the part of
         // the receivers a caster can shadow, leaves it out, and then its own object is no caster there either.
