@@ -45,17 +45,6 @@ layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, c
 uniform sampler2D u_classes;      // structures/lit_umbra.py: pixels proven lit or umbra need no sample
 #endif
 
-// Cycles' soft falloff samples the disk through the light centre facing p (kernel/light/point.h and spot.h,
-// the "oriented disk"): per unit of solid angle its integrand is the receiver's cosine over the directions
-// that meet that disk; a sample whose ray misses it weighs nothing. The caller's weight is the receiver's
-// cosine over d² (d² = `d2`, to the sample); this is the factor that makes it the receiver's cosine over the
-// samples' density in solid angle seen from p. Samples on a disk across the view's axis: that disk's cosine
-// (its density per solid angle ∝ cosθ/d²). Samples filling the ball (averaged.projected_disk_ball, density
-// ∝ 1/√(L² − s²) at s along a chord of half length L from its middle, t_mid from p): their density along
-// the ray's direction is ∫ ρ t² dt over the chord, π(t_mid² + L²/2), so the factor is d²/(t_mid² + L²/2).
-// Far from the light (d ≫ r) both come to ~1 over d²; at d ~ r they decide the weights (fuzz 63: a 2.2 m
-// spot 2.4 m away). The ball took the facing disk's cosine before, exact only far away: a 1 m light 1.3 m over
-// the floor (tests/test_sphere_light_samples.py), 0.033 -> 0.025 with the ball's samples.
 // Where the ray from p towards `to_light` meets Cycles' disk facing p: its distance from p, or -1 where it
 // misses the disk (or p is the centre).
 float facing_disk_distance(vec3 p, vec3 to_light) {
@@ -75,6 +64,17 @@ vec2 ball_chord(vec3 p, vec3 to_light) {
     return vec2(t_mid, u_soft_disk.w * u_soft_disk.w - max(dot(m, m) - t_mid * t_mid, 0.0));
 }
 
+// Cycles' soft falloff samples the disk through the light centre facing p (kernel/light/point.h and spot.h,
+// the "oriented disk"): per unit of solid angle its integrand is the receiver's cosine over the directions
+// that meet that disk; a sample whose ray misses it weighs nothing. The caller's weight is the receiver's
+// cosine over d² (d² = `d2`, to the sample); this is the factor that makes it the receiver's cosine over the
+// samples' density in solid angle seen from p. Samples on a disk across the view's axis: that disk's cosine
+// (its density per solid angle ∝ cosθ/d²). Samples filling the ball (averaged.projected_disk_ball, density
+// ∝ 1/√(L² − s²) at s along a chord of half length L from its middle, t_mid from p): their density along
+// the ray's direction is ∫ ρ t² dt over the chord, π(t_mid² + L²/2), so the factor is d²/(t_mid² + L²/2).
+// Far from the light (d ≫ r) both come to ~1 over d²; at d ~ r they decide the weights (fuzz 63: a 2.2 m
+// spot 2.4 m away). The ball took the facing disk's cosine before, exact only far away: a 1 m light 1.3 m over
+// the floor (tests/test_sphere_light_samples.py), 0.033 -> 0.025 with the ball's samples.
 float soft_disk_weight(vec3 p, vec3 to_light, float d2) {
     if (p == u_sphere_inside.xyz) return 1.0;
     if (facing_disk_distance(p, to_light) < 0.0) return 0.0;
