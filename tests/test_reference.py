@@ -255,3 +255,78 @@ def test_lights_rendered_alone_are_every_light_that_renders(scene):
             bpy.data.objects.remove(ob)
         bpy.data.collections.remove(group)
         bpy.data.lights.remove(data)
+
+
+def test_centre_lights_cast_the_light_centres_hard_shadow(scene, cache):
+    """`centre_lights`: the square light shrunk to its centre (0, 0, 3) casts the occluder's hard shadow, the
+    square [0, 1]² scaled by 3 / (3 - 1) from the centre: [0, 1.5]² on the ground, umbra inside and lit
+    outside with nothing between (the soft reference has its penumbra there). The light comes back as it was."""
+    area = bpy.data.objects["Area"].data
+    before = settings_snapshot(scene)
+    c = R.cycles_visibility(scene, samples=16, seed=0, cache_dir=cache, centre_lights=True)
+    assert settings_snapshot(scene) == before and area.size == 1.0
+    assert c.key != R.cycles_visibility(scene, samples=16, seed=0, cache_dir=cache).key
+    x = (np.arange(RES) + 0.5) / RES * 4.0 - 2.0
+    X, Y = np.meshgrid(x, x)
+    inside = (X > 0.05) & (X < 1.45) & (Y > 0.05) & (Y < 1.45)
+    outside = (X < -0.05) | (X > 1.55) | (Y < -0.05) | (Y > 1.55)
+    assert c.mask.all() and inside.sum() > 300
+    assert np.all(c.visibility[inside] < 1e-6) and np.all(c.visibility[outside] > 1.0 - 1e-6)
+    assert c.centre_unknown is not None and not c.centre_unknown.any()
+    soft = R.cycles_visibility(scene, samples=16, seed=0, cache_dir=cache)
+    assert soft.centre_unknown is None
+    assert np.mean((soft.visibility[outside] > 0.02) & (soft.visibility[outside] < 0.98)) > 0.05   # penumbra
+
+
+def test_centre_lights_weigh_each_light_by_its_own_light(scene, cache):
+    """With two lights, each light's centre visibility is weighted by the light as it is (rendered alone, its
+    casters hidden): the result equals the sum of the two one-light centre references, whose unshadowed images
+    are the lights' own unshadowed renders, exactly (the same seed and samples)."""
+    data = bpy.data.lights.new("Lamp", "POINT")
+    data.energy = 100.0
+    data.shadow_soft_size = 0.3
+    lamp = bpy.data.objects.new("Lamp", data)
+    lamp.location = (-1.0, 1.0, 2.0)
+    scene.collection.objects.link(lamp)
+    area = bpy.data.objects["Area"]
+    try:
+        kw = dict(samples=16, seed=0, width=32, height=32, cache_dir=cache)
+        both = R.cycles_visibility(scene, **kw, centre_lights=True)
+        assert data.shadow_soft_size == pytest.approx(0.3)
+        alone, soft = [], []
+        for hidden in (lamp, area):
+            hidden.hide_render = True
+            alone.append(R.cycles_visibility(scene, **kw, centre_lights=True))
+            soft.append(R.cycles_visibility(scene, **kw))
+            hidden.hide_render = False
+        for image in ("shadowed", "unshadowed"):
+            np.testing.assert_allclose(getattr(both, image), getattr(alone[0], image) + getattr(alone[1], image),
+                                       rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(both.unshadowed, soft[0].unshadowed + soft[1].unshadowed, rtol=1e-5, atol=1e-7)
+    finally:
+        bpy.data.objects.remove(lamp)
+        bpy.data.lights.remove(data)
+
+
+def test_centre_below_the_horizon_leaves_the_centre_shadow_unknown(scene, cache):
+    """A 1.2 rad sun whose centre lies 10° below the ground's horizon still lights the ground with the part of
+    its disk above it; its centre carries nothing there, so the centre's shadow says nothing: the ground's
+    whole share is `centre_unknown`, and `visibility` counts it as shadowed."""
+    import math
+    area = bpy.data.objects["Area"]
+    data = bpy.data.lights.new("LowSun", "SUN")
+    data.energy = 3.0
+    data.angle = 1.2
+    sun = bpy.data.objects.new("LowSun", data)
+    sun.rotation_euler = (math.radians(100.0), 0.0, 0.0)     # light travelling 10° upwards
+    scene.collection.objects.link(sun)
+    area.hide_render = True
+    try:
+        c = R.cycles_visibility(scene, samples=16, seed=0, width=32, height=32, cache_dir=cache,
+                                centre_lights=True)
+        assert c.mask.sum() > 900
+        assert np.all(c.centre_unknown[c.mask] > 1.0 - 1e-6) and np.all(c.visibility[c.mask] < 1e-6)
+    finally:
+        area.hide_render = False
+        bpy.data.objects.remove(sun)
+        bpy.data.lights.remove(data)

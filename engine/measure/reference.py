@@ -19,6 +19,9 @@ A scene with two to PER_LIGHT_MAX lights is rendered one light at a time and sum
 shadowed and unshadowed), as Cycles' light tree can give a degenerate light a tiny share of the samples (see
 `_render_pair`).
 
+`centre_lights=True` renders every light shrunk to its centre (`_shrink_lights`): the hard shadow of the light
+centre, what a hard shadow-map technique estimates, as Cycles traces it.
+
 Pixel filter: Cycles spreads each pixel's samples over a filter footprint around the pixel centre;
 Penumbra shades one point per pixel, at its centre. The matching choice is a Gaussian filter of the
 minimal width (0.01 px): every camera ray then passes (within 0.005 px) through the pixel centre, and
@@ -72,6 +75,10 @@ DEFAULT_THRESHOLD = 1e-3
 # lights. Each light's render costs about what the scene's does, so a user's scene with more lights keeps one.
 PER_LIGHT_MAX = 4
 
+# An area light's side when shrunk to its centre (`_shrink_lights`): a zero size makes Cycles drop the light,
+# and its power does not depend on its size, so a tiny one keeps its light and its emission lobe.
+CENTRE_AREA_SIZE = 1e-5
+
 # Number of Cycles renders actually run in this process (cache hits do not count). Tests read it.
 render_count = 0
 
@@ -92,6 +99,9 @@ class ReferenceResult:
     seconds     Cycles wall time of the two renders (of the original renders for a cache hit)
     shadowed_seconds  wall time of the shadowed render alone, the one a user's render would cost (None for
                 cache entries written before it was recorded)
+    centre_unknown  (H, W) float32, for a reference of the lights' centres (`centre_lights`): the share of the
+                pixel's light that comes from lights whose centre lies below its horizon, on which the centre's
+                shadow says nothing; `visibility` counts that share as shadowed (None otherwise)
     """
 
     visibility: np.ndarray
@@ -105,6 +115,7 @@ class ReferenceResult:
     cached: bool = False
     key: str = ""
     shadowed_seconds: float | None = None
+    centre_unknown: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -182,7 +193,8 @@ def _mesh_digest(mesh) -> bytes:
 
 
 def scene_key(scene, *, samples: int, seed: int, width: int, height: int, filter_width: float,
-              filter_type: str = "GAUSSIAN", view_layer=None, per_light: bool = False) -> str:
+              filter_type: str = "GAUSSIAN", view_layer=None, per_light: bool = False,
+              centre_lights: bool = False) -> str:
     """Hex digest of everything that changes the two reference renders."""
     import bpy
 
@@ -197,8 +209,10 @@ def scene_key(scene, *, samples: int, seed: int, width: int, height: int, filter
     put("penumbra-reference", CACHE_VERSION, bpy.app.version_string, int(samples), int(seed),
         int(width), int(height), str(filter_type), round(float(filter_width), 6))
     put("pixel_aspect", scene.render.pixel_aspect_x, scene.render.pixel_aspect_y)
-    if _lights_alone(scene, view_layer, per_light):
+    if _lights_alone(scene, view_layer, per_light or centre_lights):
         put("per-light")        # one light's key is the same either way
+    if centre_lights:
+        put("centre-lights", CENTRE_AREA_SIZE, 3)
 
     mesh_cache: dict[str, bytes] = {}
     records = []
@@ -381,51 +395,106 @@ def _lights_alone(scene, view_layer, per_light: bool) -> list:
     return lights if 1 < len(lights) <= PER_LIGHT_MAX else []
 
 
+def _shrink_lights(st, scene) -> None:
+    """Every light of `scene` shrunk to its centre, through `st`: point and spot radii and sun angles 0, area
+    lights CENTRE_AREA_SIZE across (one of zero size stays so: Cycles renders no light for it either way). Power,
+    direction, cone and transform are kept, so each light's share of a pixel's light stays about the same."""
+    for ob in scene.objects:
+        if ob.type != "LIGHT":
+            continue
+        light = ob.data
+        if light.type in ("POINT", "SPOT") and light.shadow_soft_size != 0.0:
+            st.set(light, "shadow_soft_size", 0.0)
+        elif light.type == "SUN" and light.angle != 0.0:
+            st.set(light, "angle", 0.0)
+        elif light.type == "AREA":
+            for attr in ("size", "size_y"):
+                if getattr(light, attr) > CENTRE_AREA_SIZE:
+                    st.set(light, attr, CENTRE_AREA_SIZE)
+
+
+def _hide_casters(st, scene) -> None:
+    """Every object but the lights hidden from shadow rays and from diffuse rays, through `st`: Cycles also
+    reaches a light by BSDF-sampled rays (MIS), which are diffuse rays, not shadow rays, so an object left
+    visible to those still blocks the light."""
+    for ob in scene.objects:
+        if ob.type == "LIGHT":
+            continue
+        for attr in ("visible_shadow", "visible_diffuse"):
+            if getattr(ob, attr):
+                st.set(ob, attr, False)
+
+
 def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_width, view_layer,
-                 per_light: bool = False):
+                 per_light: bool = False, centre_lights: bool = False):
     """Render shadowed and unshadowed images; returns (shadowed, unshadowed, [seconds of each]).
 
     `per_light`: render each light alone and sum (direct light is linear in the lights). Cycles picks one
     light per sample by its light tree's importance estimate, and where that estimate is degenerate the
     light's share arrives in rare, heavily weighted samples: a spot with a zero Z scale beside another light
     (fuzz seeds 26029, 27032) is picked so seldom that at 1024 spp some pixels hold none of its light and
-    others several times it, while each light alone converges (its pick probability is 1)."""
-    lights = _lights_alone(scene, view_layer, per_light)
+    others several times it, while each light alone converges (its pick probability is 1).
+
+    `centre_lights`: every light shrunk to its centre (`_shrink_lights`), each light's centre visibility
+    weighted by the light's own unshadowed light, as a hard technique weights its lights (a 46 m area light
+    shrunk to a point lights a pixel very differently). The shadowed image is then sum_i U_i V_i and the
+    unshadowed sum_i U_i (U_i the light as it is, V_i its centre's visibility, each light alone where
+    `_lights_alone` allows, else all together), and a fourth value holds the light of the lights whose centre
+    lies below the pixel's horizon (no V_i: counted shadowed in the first image). Otherwise the fourth value is
+    None."""
+    lights = _lights_alone(scene, view_layer, per_light or centre_lights)
     with measurement_scene(scene, view_layer, width, height, "penumbra_ref_") as (st, tmpdir):
         _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width)
 
         def render(name: str) -> np.ndarray:
             return _render_still(st, scene, view_layer, os.path.join(tmpdir, f"{name}.exr"))
 
+        def each_light(name: str) -> list:
+            """One render per light of `lights` (the others hidden, then all shown again); one render of them
+            all where `lights` is empty."""
+            if not lights:
+                return [render(name)]
+            images = []
+            for i, alone in enumerate(lights):
+                for ob in lights:
+                    if ob.hide_render != (ob is not alone):
+                        st.set(ob, "hide_render", ob is not alone)
+                images.append(render(f"{name}_{i}"))
+            for ob in lights:
+                if ob.hide_render:
+                    st.set(ob, "hide_render", False)
+            return images
+
+        if centre_lights:
+            t0 = time.perf_counter()
+            hidden = _Settings()
+            try:
+                _hide_casters(hidden, scene)
+                weights = each_light("weight")
+            finally:
+                hidden.restore()
+            _shrink_lights(st, scene)
+            shadowed = each_light("shadowed")
+            _hide_casters(st, scene)
+            unshadowed = each_light("unshadowed")
+            lit, unknown = 0.0, 0.0
+            for w, a, b in zip(weights, shadowed, unshadowed):
+                # every pixel the centre reaches at all: a light faint beside its own brightest pixels may
+                # still carry much of a pixel's light beside the other lights
+                v, reached = visibility_from(a, b, threshold=0.0)
+                lit = lit + w * (v * reached)[..., None]
+                unknown = unknown + w * (~reached)[..., None]
+            return lit, sum(weights), [time.perf_counter() - t0, 0.0], unknown
+
         images = []
         seconds = []
         for unshadowed in (False, True):
             if unshadowed:
-                for ob in scene.objects:
-                    if ob.type != "LIGHT" and ob.visible_shadow:
-                        st.set(ob, "visible_shadow", False)
-                    # Cycles also reaches a light by BSDF-sampled rays (MIS), which are diffuse rays, not
-                    # shadow rays: objects must be invisible to those as well, or they still block the light.
-                    if ob.type != "LIGHT" and ob.visible_diffuse:
-                        st.set(ob, "visible_diffuse", False)
-            name = "unshadowed" if unshadowed else "shadowed"
+                _hide_casters(st, scene)
             t0 = time.perf_counter()
-            if lights:
-                total = None
-                for i, alone in enumerate(lights):
-                    for ob in lights:
-                        if ob.hide_render != (ob is not alone):
-                            st.set(ob, "hide_render", ob is not alone)
-                    image = render(f"{name}_{i}")
-                    total = image if total is None else total + image
-                for ob in lights:
-                    if ob.hide_render:
-                        st.set(ob, "hide_render", False)
-                images.append(total)
-            else:
-                images.append(render(name))
+            images.append(sum(each_light("unshadowed" if unshadowed else "shadowed")))
             seconds.append(time.perf_counter() - t0)
-        return images[0], images[1], seconds
+        return images[0], images[1], seconds, None
 
 
 def _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width):
@@ -469,7 +538,7 @@ def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: i
                       height: int | None = None, cache_dir=None, threshold: float = DEFAULT_THRESHOLD,
                       filter_type: str = "GAUSSIAN", filter_width: float = POINT_FILTER_WIDTH,
                       use_cache: bool = True,
-                      view_layer=None, per_light: bool = True) -> ReferenceResult:
+                      view_layer=None, per_light: bool = True, centre_lights: bool = False) -> ReferenceResult:
     """Cycles reference visibility of `scene` (default: the context scene). See the module docstring.
 
     width/height default to the scene's resolution (percentage applied). `threshold` is relative to the
@@ -477,6 +546,7 @@ def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: i
     renders (and does not write the cache). Every scene setting changed is restored afterwards, also on
     error. `per_light` (the reference's default) renders each of several lights alone and sums them (see
     `_render_pair`); peers that stand for a user's Cycles render at some sample count pass False.
+    `centre_lights`: every light shrunk to its centre (`_shrink_lights`), the hard techniques' target.
     """
     import bpy
 
@@ -491,7 +561,7 @@ def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: i
         filter_width = 1.0  # what Cycles uses for BOX whatever the setting says
     key = scene_key(scene, samples=samples, seed=seed, width=width, height=height,
                     filter_type=filter_type, filter_width=filter_width, view_layer=view_layer,
-                    per_light=per_light)
+                    per_light=per_light, centre_lights=centre_lights)
     cdir = Path(cache_dir).expanduser() if cache_dir is not None else default_cache_dir()
     path = cdir / f"{key[:40]}.npz"
     if use_cache and path.exists():
@@ -500,25 +570,39 @@ def cycles_visibility(scene=None, *, samples: int = 256, seed: int = 0, width: i
                 shadowed, unshadowed = data["shadowed"], data["unshadowed"]
                 seconds = float(data["seconds"])
                 one = float(data["shadowed_seconds"]) if "shadowed_seconds" in data.files else None
+                unknown = data["centre_unknown"] if "centre_unknown" in data.files else None
             vis, mask = visibility_from(shadowed, unshadowed, threshold)
             return ReferenceResult(vis, mask, shadowed, unshadowed, seconds, int(samples), int(seed),
-                                   threshold, cached=True, key=key, shadowed_seconds=one)
+                                   threshold, cached=True, key=key, shadowed_seconds=one,
+                                   centre_unknown=_unknown_share(unknown, unshadowed))
         except Exception:
             pass  # unreadable entry: render again and overwrite it
 
-    shadowed, unshadowed, each = _render_pair(scene, samples=samples, seed=seed, width=width,
+    shadowed, unshadowed, each, unknown = _render_pair(scene, samples=samples, seed=seed, width=width,
                                                  height=height, filter_type=filter_type,
                                                  filter_width=filter_width,
-                                                 view_layer=view_layer, per_light=per_light)
+                                                 view_layer=view_layer, per_light=per_light,
+                                                 centre_lights=centre_lights)
     if use_cache:
         cdir.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npz")
         np.savez_compressed(tmp, shadowed=shadowed, unshadowed=unshadowed, seconds=np.float64(sum(each)),
-                            shadowed_seconds=np.float64(each[0]), samples=np.int64(samples), seed=np.int64(seed))
+                            shadowed_seconds=np.float64(each[0]), samples=np.int64(samples), seed=np.int64(seed),
+                            **({} if unknown is None else {"centre_unknown": unknown}))
         os.replace(tmp, path)  # atomic: concurrent readers never see a partial file
     vis, mask = visibility_from(shadowed, unshadowed, threshold)
     return ReferenceResult(vis, mask, shadowed, unshadowed, float(sum(each)), int(samples), int(seed),
-                           threshold, cached=False, key=key, shadowed_seconds=each[0])
+                           threshold, cached=False, key=key, shadowed_seconds=each[0],
+                           centre_unknown=_unknown_share(unknown, unshadowed))
+
+
+def _unknown_share(unknown, unshadowed):
+    """The luminance share of `unshadowed` in the image `unknown` (None stays None)."""
+    if unknown is None:
+        return None
+    total = unshadowed[..., :3].astype(np.float64) @ LUMA
+    part = unknown[..., :3].astype(np.float64) @ LUMA
+    return np.where(total > 0.0, np.clip(part / np.where(total > 0.0, total, 1.0), 0.0, 1.0), 0.0).astype(np.float32)
 
 
 def noise_floor(scene=None, samples: int = 256, *, seeds: tuple[int, int] = (0, 1), **kwargs) -> dict:
