@@ -187,17 +187,23 @@ def test_noise_floor_small_but_nonzero(scene, cache, ref):
     assert nf["pixel_match"] > 0.99
 
 
+def _add_lamp(scene, radius):
+    """A second light beside the square one: a 100 W point light of `radius` at (-1, 1, 2); (data, object)."""
+    data = bpy.data.lights.new("Lamp", "POINT")
+    data.energy = 100.0
+    data.shadow_soft_size = radius
+    lamp = bpy.data.objects.new("Lamp", data)
+    lamp.location = (-1.0, 1.0, 2.0)
+    scene.collection.objects.link(lamp)
+    return data, lamp
+
+
 def test_several_lights_are_rendered_one_at_a_time_and_summed(scene, cache):
     """With a second light the reference renders each light alone (the other hidden) and sums them: Cycles is
     deterministic for a seed, so the sum equals the two one-light references exactly. The lights come back
     as they were, and the key tells it from a render of both at once (one light's key is the same either
     way: test_cache_key_tracks_scene_content)."""
-    data = bpy.data.lights.new("Lamp", "POINT")
-    data.energy = 100.0
-    data.shadow_soft_size = 0.2
-    lamp = bpy.data.objects.new("Lamp", data)
-    lamp.location = (-1.0, 1.0, 2.0)
-    scene.collection.objects.link(lamp)
+    data, lamp = _add_lamp(scene, 0.2)
     area = bpy.data.objects["Area"]
     more = []
     try:
@@ -282,12 +288,7 @@ def test_centre_lights_weigh_each_light_by_its_own_light(scene, cache):
     """With two lights, each light's centre visibility is weighted by the light as it is (rendered alone, its
     casters hidden): the result equals the sum of the two one-light centre references, whose unshadowed images
     are the lights' own unshadowed renders, exactly (the same seed and samples)."""
-    data = bpy.data.lights.new("Lamp", "POINT")
-    data.energy = 100.0
-    data.shadow_soft_size = 0.3
-    lamp = bpy.data.objects.new("Lamp", data)
-    lamp.location = (-1.0, 1.0, 2.0)
-    scene.collection.objects.link(lamp)
+    data, lamp = _add_lamp(scene, 0.3)
     area = bpy.data.objects["Area"]
     try:
         kw = dict(samples=16, seed=0, width=32, height=32, cache_dir=cache)
