@@ -61,7 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .metrics import LUMA, compare
+from .metrics import compare, luminance
 from ..blender.compat import SettingsRecorder, set_file_format
 
 # Bump when the rendering method changes, so old cache entries are not reused.
@@ -132,8 +132,8 @@ def visibility_from(shadowed: np.ndarray, unshadowed: np.ndarray, threshold: flo
     """(visibility, mask) from the two renders. `threshold` is relative: a pixel is in the mask when its
     unshadowed luminance exceeds `threshold` times the 99th percentile of the unshadowed luminance
     (and is strictly positive). V is clipped to [0, 1] and set to 1 outside the mask."""
-    ls = shadowed[..., :3].astype(np.float64) @ LUMA
-    lu = unshadowed[..., :3].astype(np.float64) @ LUMA
+    ls = luminance(shadowed)
+    lu = luminance(unshadowed)
     finite = np.isfinite(ls) & np.isfinite(lu)
     pos = lu[finite & (lu > 0)]
     level = float(np.percentile(pos, 99)) * threshold if pos.size else np.inf
@@ -600,8 +600,8 @@ def _unknown_share(unknown, unshadowed):
     """The luminance share of `unshadowed` in the image `unknown` (None stays None)."""
     if unknown is None:
         return None
-    total = unshadowed[..., :3].astype(np.float64) @ LUMA
-    part = unknown[..., :3].astype(np.float64) @ LUMA
+    total = luminance(unshadowed)
+    part = luminance(unknown)
     return np.where(total > 0.0, np.clip(part / np.where(total > 0.0, total, 1.0), 0.0, 1.0), 0.0).astype(np.float32)
 
 
