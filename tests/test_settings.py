@@ -60,7 +60,7 @@ def test_technique_settings_are_options_of_their_technique():
     assert (s.option("pcss_blocker_samples"), s.option("pcss_filter_samples"), s.option("pcss_max_radius"),
             s.option("pcss_filter_max_radius"), s.option("pcss_midpoint")) == (64, 512, 0.1, 0.2, True)
     assert (s.option("averaged_light_samples"), s.option("averaged_weighted")) == (256, True)
-    assert (s.shadow_map_size, s.bias, s.normal_offset, s.seed, s.debug_passes) == (1024, 1.0, 0.5, 0, False)
+    assert (s.shadow_map_size, s.bias, s.normal_offset, s.seed, s.debug_passes) == (1024, 1.0, 0.25, 0, False)
 
 
 @pytest.mark.parametrize("name, bad, allowed", [

@@ -18,7 +18,7 @@ SHARED = (
            min=16, max=16384, soft_min=128, soft_max=4096),
     Option("bias", 1.0, "Bias", "Depth bias in shadow-map texels, scaled by the receiver's slope",
            min=0.0, max=100.0),
-    Option("normal_offset", 0.5, "Normal Offset", "Receiver offset along its normal, in shadow-map texels",
+    Option("normal_offset", 0.25, "Normal Offset", "Receiver offset along its normal, in shadow-map texels",
            min=0.0, max=100.0),
     Option("seed", 0, "Seed", "Seed of the techniques' sample patterns", min=0),
     Option("early_skip", False, "Skip Lit/Umbra Pixels",

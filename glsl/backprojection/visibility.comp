@@ -1055,6 +1055,7 @@ struct Result {
 Pixel make_pixel(ivec2 px) {
     Pixel p;
     p.r = pixel_receiver(px);
+    p.r.bias = slope_scaled_bias(p.r);      // micro-occluders over a whole search area
     p.d = p.r.map.z;
     p.tex = map_texel_window();
     p.tp = window_coords(p.r.local);

@@ -150,6 +150,7 @@ void main() {
     if (pixel_lit(px)) {
 #endif
         Receiver r = pixel_receiver(px);
+        r.bias = slope_scaled_bias(r);      // blockers searched and filtered over a whole region
         vec3 n = view_direction(texelFetch(g_normal, px, 0).xyz);
         float d = r.map.z - r.bias;
         Footprint f = light_footprint(r.local);

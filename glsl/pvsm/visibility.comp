@@ -475,6 +475,7 @@ void main() {
     if (pixel_lit(px)) {
         vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
         g_r = pixel_receiver(px);
+        g_r.bias = slope_scaled_bias(g_r);  // blockers searched and filtered over a whole region
         g_n = view_direction(texelFetch(g_normal, px, 0).xyz);
         g_depth = g_r.map.z - g_r.bias;
         mat2 phi = mat2(0.0);

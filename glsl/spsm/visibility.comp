@@ -214,6 +214,7 @@ void main() {
         // (δ·tanθ on the receiver) moves outer shadow edges outwards.
         vec2 p = map_coords(light_local(surface)).xy;
         r.map.xy = p;
+        r.bias = slope_scaled_bias(r);     // triangles rebuilt from 16-bit planes
         ivec2 k = ivec2(floor(p));
         float eta_front = eta_from_depth(r.map.z - r.bias);     // nearer than this occludes
         float eta_back = eta_from_depth(r.map.z + r.bias);
