@@ -309,6 +309,24 @@ def test_centre_lights_weigh_each_light_by_its_own_light(scene, cache):
         bpy.data.lights.remove(data)
 
 
+def test_centre_lights_are_rendered_alone_whatever_their_number(scene, cache):
+    """The soft reference renders more than PER_LIGHT_MAX lights together (each light costs a render), but the
+    centre reference needs each light's own light to weigh its centre's visibility: three renders per light
+    (its light, its centre shadowed and unshadowed), however many there are."""
+    added = [_add_lamp(scene, 0.1) for _ in range(R.PER_LIGHT_MAX)]
+    try:
+        kw = dict(samples=4, seed=0, width=16, height=16, cache_dir=cache)
+        n = R.render_count
+        R.cycles_visibility(scene, **kw)
+        assert R.render_count == n + 2
+        R.cycles_visibility(scene, **kw, centre_lights=True)
+        assert R.render_count == n + 2 + 3 * (R.PER_LIGHT_MAX + 1)
+    finally:
+        for data, lamp in added:
+            bpy.data.objects.remove(lamp)
+            bpy.data.lights.remove(data)
+
+
 def test_centre_below_the_horizon_leaves_the_centre_shadow_unknown(scene, cache):
     """A 1.2 rad sun whose centre lies 10° below the ground's horizon still lights the ground with the part of
     its disk above it; its centre carries nothing there, so the centre's shadow says nothing: the ground's

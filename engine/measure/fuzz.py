@@ -408,19 +408,22 @@ def centre_errors(v: np.ndarray, cyc: "SceneReference") -> tuple[float, float]:
     return float(farthest.mean()), float(distance.mean())
 
 
-def hard_bound(technique: str, v: np.ndarray, cyc: "SceneReference", n_shadow: int) -> float:
-    """Bound on a hard technique's mae_shadow for its Visibility `v`: the centre shadow's own error against the
-    soft reference (centre_errors), plus HARD_ABS and EDGE_PIXELS. |v - ref| <= |v - centre| + |centre - ref|
-    pixel by pixel, so this holds a technique to HARD_ABS of the centre shadow on average; the soft
-    reference's noise is inside the first term already."""
-    return centre_errors(v, cyc)[0] + HARD_ABS[technique] + _noise_and_edges(math.nan, n_shadow)
+def hard_bound(technique: str, centre_ideal: float, n_shadow: int) -> float:
+    """Bound on a hard technique's mae_shadow: the centre shadow's own error against the soft reference over the
+    technique's shadow pixels (`centre_ideal`, centre_errors), plus HARD_ABS and EDGE_PIXELS. |v - ref| <=
+    |v - centre| + |centre - ref| pixel by pixel, so this holds a technique to HARD_ABS of the centre shadow on
+    average; the soft reference's noise is inside the first term already."""
+    return centre_ideal + HARD_ABS[technique] + _noise_and_edges(math.nan, n_shadow)
 
 
-def technique_bound(technique: str, v: np.ndarray, cyc: "SceneReference", n_shadow: int) -> float:
-    """The bound of `technique`'s mae_shadow for its Visibility `v` on the scene of `cyc`."""
+def technique_bound(technique: str, v: np.ndarray, cyc: "SceneReference", m: dict) -> float:
+    """The bound of `technique`'s mae_shadow for its Visibility `v` on the scene of `cyc`, `m` its metrics
+    (compare). A hard technique's distance to the centre shadow goes into `m` for the report (centre_ideal,
+    centre_error: centre_errors)."""
     if technique in HARD_SHADOW and cyc.centre is not None:
-        return hard_bound(technique, v, cyc, n_shadow)
-    return bound(technique, cyc.floor["mae_shadow"], n_shadow)
+        m["centre_ideal"], m["centre_error"] = centre_errors(v, cyc)
+        return hard_bound(technique, m["centre_ideal"], m["n_shadow"])
+    return bound(technique, cyc.floor["mae_shadow"], m["n_shadow"])
 
 
 @dataclass
@@ -471,7 +474,7 @@ def shadow_score(params: dict, technique: str, resolution=RESOLUTION, samples: i
     result = pipeline.render(snap, settings)
     v = result.passes["Visibility"][..., 0]
     m = compare(v, cyc.ref.visibility, cyc.ref.mask)
-    return m, technique_bound(technique, v, cyc, m["n_shadow"])
+    return m, technique_bound(technique, v, cyc, m)
 
 
 FIREFLY_RATIO = 10.0    # a pixel this many times brighter in one seed's render than in the other's
@@ -663,9 +666,7 @@ def score_scene(seed: int, techniques, *, resolution=RESOLUTION, samples: int = 
             continue
         v = result.passes["Visibility"][..., 0]
         m = compare(v, cyc.ref.visibility, cyc.ref.mask)
-        if technique in HARD_SHADOW and cyc.centre is not None:     # against its own target, for the report
-            m["centre_ideal"], m["centre_error"] = centre_errors(v, cyc)
-        b = technique_bound(technique, v, cyc, m["n_shadow"])
+        b = technique_bound(technique, v, cyc, m)
         u, u_bound = _unshadowed_check(result, cyc)
         mae = m["mae_shadow"] if m["n_shadow"] else 0.0     # no shadow on either side: nothing to miss
         status = "ok"

@@ -209,7 +209,7 @@ def scene_key(scene, *, samples: int, seed: int, width: int, height: int, filter
     put("penumbra-reference", CACHE_VERSION, bpy.app.version_string, int(samples), int(seed),
         int(width), int(height), str(filter_type), round(float(filter_width), 6))
     put("pixel_aspect", scene.render.pixel_aspect_x, scene.render.pixel_aspect_y)
-    if _lights_alone(scene, view_layer, per_light or centre_lights):
+    if _lights_alone(scene, view_layer, per_light, centre_lights):
         put("per-light")        # one light's key is the same either way
     if centre_lights:
         put("centre-lights", CENTRE_AREA_SIZE, 3)
@@ -388,11 +388,12 @@ def _render_lights(scene, view_layer) -> list:
     return lights
 
 
-def _lights_alone(scene, view_layer, per_light: bool) -> list:
+def _lights_alone(scene, view_layer, per_light: bool, centre_lights: bool) -> list:
     """The lights `_render_pair` renders one at a time: with `per_light`, two to PER_LIGHT_MAX of them
-    (_render_lights), else none."""
-    lights = _render_lights(scene, view_layer) if per_light else []
-    return lights if 1 < len(lights) <= PER_LIGHT_MAX else []
+    (_render_lights), else none; with `centre_lights`, two or more whatever their number, as each light's
+    centre visibility is weighted by that light's own light (a few samples each: the cost stays low)."""
+    lights = _render_lights(scene, view_layer) if per_light or centre_lights else []
+    return lights if 1 < len(lights) <= (len(lights) if centre_lights else PER_LIGHT_MAX) else []
 
 
 def _shrink_lights(st, scene) -> None:
@@ -438,11 +439,11 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
     `centre_lights`: every light shrunk to its centre (`_shrink_lights`), each light's centre visibility
     weighted by the light's own unshadowed light, as a hard technique weights its lights (a 46 m area light
     shrunk to a point lights a pixel very differently). The shadowed image is then sum_i U_i V_i and the
-    unshadowed sum_i U_i (U_i the light as it is, V_i its centre's visibility, each light alone where
-    `_lights_alone` allows, else all together), and a fourth value holds the light of the lights whose centre
+    unshadowed sum_i U_i (U_i the light as it is, V_i its centre's visibility, each light alone), and a fourth
+    value holds the light of the lights whose centre
     lies below the pixel's horizon (no V_i: counted shadowed in the first image). Otherwise the fourth value is
     None."""
-    lights = _lights_alone(scene, view_layer, per_light or centre_lights)
+    lights = _lights_alone(scene, view_layer, per_light, centre_lights)
     with measurement_scene(scene, view_layer, width, height, "penumbra_ref_") as (st, tmpdir):
         _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width)
 
@@ -466,7 +467,6 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
             return images
 
         if centre_lights:
-            t0 = time.perf_counter()
             hidden = _Settings()
             try:
                 _hide_casters(hidden, scene)
@@ -474,9 +474,13 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
             finally:
                 hidden.restore()
             _shrink_lights(st, scene)
+            t1 = time.perf_counter()
             shadowed = each_light("shadowed")
+            seconds = [time.perf_counter() - t1]
             _hide_casters(st, scene)
+            t1 = time.perf_counter()
             unshadowed = each_light("unshadowed")
+            seconds.append(time.perf_counter() - t1)
             lit, unknown = 0.0, 0.0
             for w, a, b in zip(weights, shadowed, unshadowed):
                 # every pixel the centre reaches at all: a light faint beside its own brightest pixels may
@@ -484,7 +488,7 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
                 v, reached = visibility_from(a, b, threshold=0.0)
                 lit = lit + w * (v * reached)[..., None]
                 unknown = unknown + w * (~reached)[..., None]
-            return lit, sum(weights), [time.perf_counter() - t0, 0.0], unknown
+            return lit, sum(weights), seconds, unknown
 
         images = []
         seconds = []
