@@ -351,6 +351,18 @@ def test_shadows_within_a_texel_of_a_grazing_receiver_within_bound(seed, techniq
     assert m["mae_shadow"] <= limit
 
 
+@pytest.mark.parametrize("technique", ["HARD", "SPSM"])
+def test_lifted_shadow_ray_starts_lie_inside_the_view(technique):
+    """Fuzz 29243: a smooth cylinder's 32-gon cap lit from behind its plane by a sun 8° above it, through its
+    shading normals. Its shadow rays leave from points lifted up to 0.2 m off the cap (the terminator offset,
+    as Cycles lifts them), and Cycles finds the tilted ground in their way. The sun's window was fitted to the
+    lit pixels alone, the lifted starts fell outside it and counted as lit: HARD and SPSM 0.061 against bounds
+    of 0.034. With the starts in the lit box (render/lit_bounds.comp): 0.0036."""
+    m, limit = fuzz.shadow_score(fuzz.scene_params(29243), technique)
+    print(technique, m["mae_shadow"], "bound", limit)
+    assert m["mae_shadow"] <= limit
+
+
 # ----------------------------------------------------------------------------------------------------------
 # the long sweep
 # ----------------------------------------------------------------------------------------------------------
