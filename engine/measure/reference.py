@@ -393,7 +393,8 @@ def _lights_alone(scene, view_layer, per_light: bool, centre_lights: bool) -> li
     (_render_lights), else none; with `centre_lights`, two or more whatever their number, as each light's
     centre visibility is weighted by that light's own light (a few samples each: the cost stays low)."""
     lights = _render_lights(scene, view_layer) if per_light or centre_lights else []
-    return lights if 1 < len(lights) <= (len(lights) if centre_lights else PER_LIGHT_MAX) else []
+    most = len(lights) if centre_lights else PER_LIGHT_MAX
+    return lights if 1 < len(lights) <= most else []
 
 
 def _shrink_lights(st, scene) -> None:
@@ -440,9 +441,8 @@ def _render_pair(scene, *, samples, seed, width, height, filter_type, filter_wid
     weighted by the light's own unshadowed light, as a hard technique weights its lights (a 46 m area light
     shrunk to a point lights a pixel very differently). The shadowed image is then sum_i U_i V_i and the
     unshadowed sum_i U_i (U_i the light as it is, V_i its centre's visibility, each light alone), and a fourth
-    value holds the light of the lights whose centre
-    lies below the pixel's horizon (no V_i: counted shadowed in the first image). Otherwise the fourth value is
-    None."""
+    value holds the light of the lights whose centre lies below the pixel's horizon (no V_i: counted shadowed
+    in the first image). Otherwise the fourth value is None."""
     lights = _lights_alone(scene, view_layer, per_light, centre_lights)
     with measurement_scene(scene, view_layer, width, height, "penumbra_ref_") as (st, tmpdir):
         _cycles_direct_light(st, scene, samples, seed, filter_type, filter_width)
