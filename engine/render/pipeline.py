@@ -226,9 +226,9 @@ _BOUNDS_RESET = np.array([0] + [0xFFFFFFFF] * 3 + [0] * 3 + [0, 0xFFFFFFFF], np.
 def _lit_bounds(frame: Frame, irradiance, buffer, centre, count_hidden: bool = False):
     """Reduced on the GPU (render/lit_bounds.comp), so only 36 bytes are read back: the world box (lo, hi) of
     the covered pixels this light reaches and of their shadow rays' starts lifted off smooth triangles (exactly
-    their float32 min and max), or None if it reaches none; with
-    `count_hidden`, how many of them have the light's `centre` at or below their horizon (else 0); and for a
-    point `centre` the distance from it to the nearest of them (None for a direction). `centre`: (x, y, z, 0),
+    their float32 min and max), or None if it reaches none; with `count_hidden`, how many of them have the
+    light's `centre` at or below their horizon (else 0); and for a point `centre` the distance from it to the
+    nearest of them (None for a direction). `centre`: (x, y, z, 0),
     a world unit vector towards a sun's centre, or (x, y, z, 1), a local light's position."""
     buffer.write(_BOUNDS_RESET)
     frame.dispatch("render/lit_bounds.comp",

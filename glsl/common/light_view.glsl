@@ -84,13 +84,19 @@ struct Receiver {
 // striped acne spread over 254 of 276 scenes.
 const float SLOPE_BIAS = 0.1;
 
+// The depth bias at the receiver (world units): u_bias times half a texel plus `per_slope` texels per unit of
+// its tan θ.
+float depth_bias(Receiver r, float per_slope) {
+    return u_bias * r.texel * (0.5 + per_slope * r.slope);
+}
+
 // The depth bias with the whole slope term (one texel per unit of tan θ), for the tests whose error grows with
 // the receiver's slope beyond one texel of its plane: SPSM's triangles rebuilt from 16-bit planes, and the
 // blocker searches and filters over a whole region (BACKPROJECTION, PCSS, PVSM), across which a curved
 // receiver leaves its tangent plane by more the more grazing it is (with SLOPE_BIAS there: fuzz 29074 SPSM
 // 0.009 -> 0.59, 29014 BACKPROJECTION 0.078 -> 0.29, 29030 PCSS 0.057 -> 0.110).
 float slope_scaled_bias(Receiver r) {
-    return u_bias * r.texel * (0.5 + r.slope);
+    return depth_bias(r, 1.0);
 }
 
 Receiver make_receiver(vec3 p, vec3 ng) {
@@ -104,9 +110,9 @@ Receiver make_receiver(vec3 p, vec3 ng) {
     r.start = l;
     r.local = l + r.normal * (u_normal_offset * texel);
     r.map = map_coords(r.local);
-    r.bias = u_bias * texel * (0.5 + SLOPE_BIAS * tan_t);
     r.texel = texel;
     r.slope = tan_t;
+    r.bias = depth_bias(r, SLOPE_BIAS);
     r.through_surface = false;
     r.own_plane = dot(r.normal, l);
     return r;
