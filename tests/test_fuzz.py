@@ -363,6 +363,29 @@ def test_lifted_shadow_ray_starts_lie_inside_the_view(technique):
     assert m["mae_shadow"] <= limit
 
 
+def test_pixels_we_send_no_light_are_not_scored_for_visibility():
+    """Fuzz 30011: a sphere and a cube sunk into the floor under a 1.3 mm spot. At three pixels on the crease
+    the centre ray hits the back of the sphere (or cube) just above the floor: we send no light there (V is
+    0/0, written as 1), while one or two of Cycles' 256 samples land on the lit floor beside it (its
+    unshadowed 0.4 % of the floor's, shadowed 0, so V 0). They made REFERENCE's mae_shadow 0.049 against its
+    bound of 0.046; scored where both renders send light (fuzz.scored_mask), 0.019. The pixels left out are
+    exactly those we leave dark, and the Unshadowed check still judges their light."""
+    m, limit = fuzz.shadow_score(fuzz.scene_params(30011), "REFERENCE")
+    print("30011 REFERENCE", m["mae_shadow"], "bound", limit, "pixels", m["n_mask"])
+    assert m["mae_shadow"] <= limit
+
+
+def test_scored_mask_is_cycles_mask_where_we_send_light():
+    ref = type("Ref", (), {"mask": np.array([[True, True], [False, True]])})()
+    cyc = fuzz.SceneReference(ref, {}, 0.0, 0.0)
+    unshadowed = np.zeros((2, 2, 4), np.float32)
+    unshadowed[0, 0, :3] = 0.5
+    unshadowed[1, 0, :3] = 0.5
+    unshadowed[1, 1, 1] = 1e-6
+    result = type("Result", (), {"passes": {"Unshadowed": unshadowed}})()
+    assert fuzz.scored_mask(result, cyc).tolist() == [[True, False], [False, True]]
+
+
 # ----------------------------------------------------------------------------------------------------------
 # the long sweep
 # ----------------------------------------------------------------------------------------------------------
