@@ -450,6 +450,34 @@ def test_failure_class_names_a_light_whose_emitter_crosses_a_caster():
         assert "light crosses a caster" in fuzz.failure_class(params, [], snap).split(", ")
 
 
+def test_failure_class_names_a_caster_the_light_centre_sees_edge_on():
+    """From the extracted triangles: a caster with most of its area within about 6° of the light centre's rays
+    (fuzz 30065: a 10 m plane 3.4° off edge-on under a 112° sun, where PCSS, SSM and PVSM light the floor
+    beside it). Not the same plane turned 45° or face-on, not the floor at the light's level."""
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.core.snapshot import SUN, Light
+    from penumbra.engine.measure import scenes, stress
+
+    def edge_on(tilt_degrees, name="Sheet"):
+        t = math.radians(tilt_degrees)          # 0: the sheet's plane holds the sun's rays (straight down)
+        u, v = np.array([1.0, 0.0, 0.0]), np.array([0.0, math.sin(t), math.cos(t)])
+        c = np.array([0.0, 0.0, 1.5])
+        corners = [c - u - v, c + u - v, c + u + v, c - u + v]
+        sheet = np.array([[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]])
+        sun = Light("Sun", SUN, stress.look_at((0.0, 0.0, 5.0), (0.0, 0.0, 0.0)), np.ones(3), 3.0, angle=2.0)
+        snap = stress.assemble([(name, sheet, True, True)], [sun], stress.camera(), "edge-on")
+        return fuzz.edge_on_casters(snap)
+    assert edge_on(0.0) == ["Sheet"]
+    assert edge_on(3.4) == ["Sheet"]
+    assert edge_on(45.0) == []
+    assert edge_on(90.0) == []
+    assert edge_on(0.0, name=scenes.GROUND_NAME) == []
+    params = fuzz.scene_params(30065)
+    scene = fuzz.build(params, (16, 16))        # before the depsgraph is taken
+    snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+    assert "edge-on caster" in fuzz.failure_class(params, [], snap).split(", ")
+
+
 def test_fireflies_in_the_reference_are_told_from_hard_edges():
     """A light Cycles' light tree picks with a tiny probability comes out as fireflies that each seed puts in
     other pixels (fuzz 27032): the failure report names that class. A hard light edge, or a small lit patch,
