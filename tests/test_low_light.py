@@ -50,9 +50,14 @@ def test_backprojection_keeps_the_foot_of_objects_under_a_low_light(errors, key)
     assert e["BACKPROJECTION"] <= 3.0 * e["REFERENCE"]
 
 
-# Strict xfails of the twice-REFERENCE target, by (elevation, azimuth): none since the multi-jittered bitmask
-# (the 4° case: 0.0126 against REFERENCE's 0.0056 with the jittered 16×16 pattern).
-TWICE_XFAIL: dict = {}
+# Strict xfails of the twice-REFERENCE target, by (elevation, azimuth). The 4° case met it with the multi-jittered
+# bitmask (0.0126 against REFERENCE's 0.0056 with the jittered 16×16 pattern, 0.0110 with it) until the fuzz
+# scored only the pixels both renders send light to.
+TWICE_XFAIL: dict = {
+    (4.0, 0.0): "0.0096 against REFERENCE's 0.0043 (2.25x) since fuzz.scored_mask: one pixel "
+                "that we send no light to and Cycles a trace (its V 0, ours 1 for both techniques) had counted "
+                "as an error of 1 for both, 0.0110 against 0.0057 (1.94x)",
+}
 
 
 @pytest.mark.parametrize("key", [pytest.param(k, marks=[pytest.mark.xfail(strict=True, reason=TWICE_XFAIL[k])]
