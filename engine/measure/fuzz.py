@@ -456,14 +456,15 @@ def cycles_side(scene, width: int, height: int, samples: int = CYCLES_SAMPLES, *
 
 
 def scored_mask(result, cyc: SceneReference) -> np.ndarray:
-    """The pixels a render's Visibility is scored on: Cycles' mask (its unshadowed light above the threshold)
-    where the render sends light too. Where our Unshadowed is 0, V is 0/0 (a surface facing away from every
-    light; we write 1, as the reference does outside its mask) and the shaded image is dark whatever V says;
-    whether that light should be 0 is the Unshadowed check's question (_unshadowed_check). Such pixels lie on
-    creases: fuzz seed 30011, a sphere and a cube sunk into the floor, where one or two of Cycles' 256 samples
-    of a pixel whose centre hits the back of the sphere 5 mm above the floor land on the lit floor (Cycles'
-    unshadowed 0.4 % of the floor's, shadowed 0: V 0 against our 1, three such pixels of 130 made REFERENCE's
-    mae_shadow 0.049 against its bound of 0.046)."""
+    """The pixels a render's Visibility is scored on: Cycles' mask (its unshadowed light above the threshold) where
+    the render sends light too. Where our Unshadowed is 0, V is 0/0 (a surface facing away from every light; we
+    write 1, as the reference does outside its mask) and the shaded image is dark whatever V says; whether that
+    light should be 0 is the Unshadowed check's question (_unshadowed_check). Such pixels lie on creases: fuzz seed
+    30011, a sphere and a cube sunk into the floor, where one or two of Cycles' 256 samples of a pixel whose centre
+    hits the back of the sphere 5 mm above the floor land on the lit floor (Cycles' unshadowed 0.4 % of the floor's,
+    shadowed 0: V 0 against our 1), or where the pixel's centre lies on the crease line itself and a third of
+    Cycles' samples find the floor. Four such pixels of 130 made REFERENCE's mae_shadow 0.049 against its bound of
+    0.046."""
     from .metrics import luminance
     return cyc.ref.mask & (luminance(result.passes["Unshadowed"][..., :3]) > 0.0)
 
