@@ -230,6 +230,11 @@ class SceneSnapshot:
         """Object `index`'s triangles that draw something, (T, 3, 3) float64 world corners."""
         return self._drawn_triangles(self.object_id == index)[0]
 
+    def drawn_faces(self, index: int):
+        """Object `index`'s triangles that draw something: world corners (T, 3, 3), normals (T, 3, unnormalised,
+        twice the area) and areas ×2 (T,), in float64."""
+        return self._drawn_triangles(self.object_id == index)[:3]
+
     def flat_objects(self, limit: int = 16, include=None) -> dict:
         """Objects whose triangles all lie in one plane (a floor at any tilt, a flattened object), the
         `limit` largest, or those of `include` (object indices): index → (unit normal, offset) of the plane

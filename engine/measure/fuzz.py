@@ -578,12 +578,8 @@ def edge_on_casters(snap) -> list[str]:
     for i, ob in enumerate(snap.objects):
         if not ob.caster or ob.name == GROUND_NAME:     # a floor edge-on: the light at its level
             continue
-        tri = snap.drawn_triangles(i)
+        tri, normal, area = snap.drawn_faces(i)
         if not len(tri):
-            continue
-        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        area = np.linalg.norm(normal, axis=1)
-        if not area.sum() > 0.0:
             continue
         centroid = tri.mean(axis=1)
         for light in snap.lights:
