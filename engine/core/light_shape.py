@@ -56,6 +56,26 @@ def light_half_extent(light: Light, face=None) -> tuple[float, float]:
     return (light.radius, light.radius)
 
 
+def light_reach_box(light: Light, view) -> tuple[float, float, float]:
+    """Half extents, along a view's axes, of a box about its origin that holds every point of the light (metres);
+    for a sun's orthographic view, the tangents (a, b) of every direction (a, b, 1) towards its disk, and 0.
+    Filters that drop a texel whose triangle has the receiver and the whole light on one side (light_view.glsl
+    facet_clears_receiver) read it; it holds the light from any view: its own, a cube face, a rim view."""
+    rotation = np.asarray(view.view, float)[:3, :3]
+    if light.kind == SUN:
+        towards = rotation @ -np.asarray(light.direction, float)
+        widest = math.acos(max(-1.0, min(1.0, float(towards[2])))) + min(light.angle / 2.0, SUN_MAX_HALF)
+        t = math.tan(widest) if widest < 0.4999 * math.pi else 1e30
+        return (t, t, 0.0)
+    centre = rotation @ np.asarray(light.position, float) + np.asarray(view.view, float)[:3, 3]
+    if light.kind == AREA:
+        axes = rotation @ (np.asarray(light.matrix, float)[:3, :2] * (light.size_x / 2.0, light.size_y / 2.0))
+        half = np.abs(axes).sum(axis=1)
+    else:
+        half = np.full(3, float(light.radius))
+    return tuple(float(v) for v in np.abs(centre) + half)
+
+
 def light_depth_extent(light: Light, face=None) -> float:
     """How far (metres) the light's points reach off its view's z = 0 plane: 0 for an area light seen along
     its own axis and for a sun's ortho view; an area light's corners across a cube face's axis; a point or

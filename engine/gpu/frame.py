@@ -367,6 +367,17 @@ class Frame:
                        defines={"BACK_FACES": 1} if back_faces else None)
         return self.rasterise(target, prog, view.view, view.view_proj)
 
+    def render_facet_map(self, view: LightView):
+        """The normal of the surface each texel of render_depth_map(view) holds, in the view's frame
+        (common/facet.frag), as an RGBA16F texture of its own; (0, 0, 0) where empty."""
+        target = self.target((view.width, view.height), 4, "f2")
+        if not self.geometry.has_casters:
+            target[1].use()
+            target[1].clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            return target[0]
+        return self.rasterise(target, program(self.worker, "common/depth.vert", "common/facet.frag"), view.view,
+                              view.view_proj, clear=(0.0, 0.0, 0.0, 0.0))
+
     def render_depth_layers(self, views, clip_sphere=None, behind=None):
         """Depth maps of the casters from each of `views` (at most MAX_DEPTH_LAYERS) as the layers of one
         R32F texture array (the largest view's size; a smaller map fills its layer's lower-left corner), in

@@ -1,8 +1,9 @@
 """PCSS: percentage-closer soft shadows (Fernando 2005): blocker search, penumbra estimate, variable PCF.
 The main foil of the soft-shadow-map papers."""
+from ..core.light_shape import light_reach_box
 from ..structures import need
+from ..structures.depth_map import BACK_DEPTH_MAP, FACET_MAP
 from ..structures.lit_umbra import LIT_UMBRA
-from ..structures.depth_map import BACK_DEPTH_MAP
 from .base import DEPTH_MAP, MAP_SIZE_SWEEP, Option, Technique, light_shape_uniforms
 
 
@@ -62,7 +63,7 @@ class Pcss(Technique):
     reads_shared = ("early_skip",)
 
     def needs_for(self, settings) -> tuple:
-        maps = (DEPTH_MAP, BACK_DEPTH_MAP) if settings.option("pcss_midpoint") else (DEPTH_MAP,)
+        maps = (DEPTH_MAP, FACET_MAP) + ((BACK_DEPTH_MAP,) if settings.option("pcss_midpoint") else ())
         if not settings.early_skip:
             return maps
         # Every texel of the (capped) blocker-search area nearer than the receiver's plane is a blocker,
@@ -80,8 +81,10 @@ class Pcss(Technique):
             "u_blocker_samples": int(s.option("pcss_blocker_samples")),
             "u_filter_samples": int(s.option("pcss_filter_samples")),
             "u_max_radius": float(s.option("pcss_max_radius")) * max(lc.view.width, lc.view.height),
-            "u_filter_max_radius": _filter_cap(s) * max(lc.view.width, lc.view.height)},
+            "u_filter_max_radius": _filter_cap(s) * max(lc.view.width, lc.view.height),
+            "u_facet_light": light_reach_box(lc.light, lc.view)},
             samplers={"g_irradiance": lc.irradiance, "u_depth_map": lc.structures[DEPTH_MAP],
+                      "u_facet_map": lc.structures[FACET_MAP],
                       **({"u_classes": classes.classes} if classes else {}),
                       **({"u_back_map": back} if back is not None else {})},
             images={0: out}, defines={"EARLY_SKIP": int(classes is not None), "MIDPOINT": int(back is not None)})

@@ -222,10 +222,52 @@ float map_lit(sampler2D map, ivec2 texel, float receiver_depth) {
     return texelFetch(map, texel, 0).r < receiver_depth ? 0.0 : 1.0;
 }
 
+// The light-local point where the map ray through `map_pos` reaches depth `depth`.
+vec3 map_ray_point(vec2 map_pos, float depth) {
+    vec2 w = map_window(map_pos);
+    return u_light_ortho == 1 ? vec3(w, -depth) : depth * vec3(w, -1.0);
+}
+
+#ifdef FACET_MAP
+// The filters that reach texels away from the receiver's own (PCF, PCSS) compare them with the receiver's plane
+// extended under them, and a surface that meets the receiver at a concave edge lies in front of that plane:
+// a room's far wall at its corner, a wall where the floor meets it. Extended, the plane runs behind that
+// surface, so it came out as a blocker and the corners of every room were drawn dark (fuzz 30032, 30088,
+// 30118). What the texel holds is one triangle (the facet map's normal, structures/depth_map.py): when the
+// receiver's shadow ray start and the whole light lie strictly on one side of its plane, no segment between
+// them crosses that plane, so that triangle blocks no part of the light from the receiver.
+uniform sampler2D u_facet_map;
+// Half extents of a box about the view's origin that holds the whole light, along the view's axes (metres; for
+// a sun's ortho view the tangents of its directions (a, b, 1), and 0): core/light_shape.py light_reach_box.
+// Zero: the origin alone (PCF, which stands for the light by its centre whatever its size).
+uniform vec3 u_facet_light = vec3(0.0);
+const float FACET_NORMAL_ERROR = 2e-3;      // radians: a unit normal in RGBA16F, 11-bit mantissas
+
+bool facet_clears_receiver(Receiver r, ivec2 texel, float depth) {
+    vec3 n = texelFetch(u_facet_map, texel, 0).xyz;
+    if (dot(n, n) < 0.25) return false;             // no facet known
+    vec3 s = map_ray_point(vec2(texel) + 0.5, depth);
+    vec3 towards_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : -s;
+    n = dot(n, towards_light) < 0.0 ? -n : n;
+    // How far the light's box (or a sun's directions (a, b, 1)) reaches from its origin towards the plane
+    float reach = dot(abs(n), u_facet_light);
+    float light_side = u_light_ortho == 1 ? n.z - reach : dot(n, towards_light) - reach;
+    // The receiver's side by more than the stored normal's half-float rounding can move the plane there (the
+    // depth bias would be too much: a pixel a centimetre from a room's corner lies within it under a grazing light)
+    vec3 d = r.start - s;
+    return light_side > 0.0 && dot(n, d) > FACET_NORMAL_ERROR * length(d);
+}
+#endif
+
 // Receiver-plane test of one texel: the plane's depth at the texel's own centre, where the map sampled it,
 // so that a planar receiver matches its own texels exactly.
 float map_lit_plane(sampler2D map, ivec2 texel, Receiver r) {
+#ifdef FACET_MAP
+    if (map_lit(map, texel, receiver_depth_at(r, vec2(texel) + 0.5)) == 1.0) return 1.0;
+    return facet_clears_receiver(r, texel, texelFetch(map, texel, 0).r) ? 1.0 : 0.0;
+#else
     return map_lit(map, texel, receiver_depth_at(r, vec2(texel) + 0.5));
+#endif
 }
 
 // Bilinear percentage-closer comparison at a fractional texel position, each texel against the receiver's

@@ -22,6 +22,9 @@
 // penumbra, whose error no later filter removes).
 // With EARLY_SKIP, pixels the lit_umbra structure proves fully lit or in umbra take 1 or 0 without either
 // kernel: exactly what the kernels would return there (glsl/lit_umbra/classify.comp).
+// Texels whose triangle has the receiver and the whole light on one side of its plane (the far wall at a room's
+// corner) are no blockers in either kernel (light_view.glsl facet_clears_receiver).
+#define FACET_MAP 1
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 #include "common/sampling.glsl"
@@ -170,7 +173,7 @@ void main() {
             if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, u_map_size))) continue;
             float z = texelFetch(u_depth_map, t, 0).r;
             float zr = receiver_depth_at(r, vec2(t) + 0.5);
-            if (z < zr) {
+            if (z < zr && !facet_clears_receiver(r, t, z)) {
 #if MIDPOINT
                 float back = texelFetch(u_back_map, t, 0).r;
                 if (back > z && back < zr) z = 0.5 * (z + back);
