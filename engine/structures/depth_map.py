@@ -3,8 +3,9 @@ nothing was drawn. HARD, PCF and PCSS read it; BACKPROJECTION builds its pyramid
 The back-face map: the same of the casters' faces turned away from the light centre only, the near side of a
 solid's far half (second-depth shadow maps, Wang & Molnar 1994). PCSS reads it.
 The facet map: the light-view normal of the surface each depth-map texel holds (RGBA16F, common/facet.frag),
-drawn the same way so that the same triangle wins each texel. PCF and PCSS read it to keep a surface that faces
-both the light and the receiver from counting as a blocker (light_view.glsl facet_clears_receiver)."""
+drawn the same way so that the same triangle wins each texel. PCF's filter and PCSS's blocker search read it to
+keep a surface that faces both the light and the receiver from counting as a blocker (light_view.glsl
+facet_clears_receiver)."""
 from __future__ import annotations
 
 from ..gpu.frame import NO_OCCLUDER  # noqa: F401  (the empty-texel value readers compare against)

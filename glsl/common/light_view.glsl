@@ -229,13 +229,15 @@ vec3 map_ray_point(vec2 map_pos, float depth) {
 }
 
 #ifdef FACET_MAP
-// The filters that reach texels away from the receiver's own (PCF, PCSS) compare them with the receiver's plane
+// The filters that reach texels away from the receiver's own (PCF, PCSS's search) compare them with the receiver's
+// plane
 // extended under them, and a surface that meets the receiver at a concave edge lies in front of that plane:
 // a room's far wall at its corner, a wall where the floor meets it. Extended, the plane runs behind that
 // surface, so it came out as a blocker and the corners of every room were drawn dark (fuzz 30032, 30088,
 // 30118). What the texel holds is one triangle (the facet map's normal, structures/depth_map.py): when the
 // receiver's shadow ray start and the whole light lie strictly on one side of its plane, no segment between
-// them crosses that plane, so that triangle blocks no part of the light from the receiver.
+// them crosses that plane, so that triangle blocks no part of the light from the receiver. FACET_FILTER applies
+// the test in map_lit_plane, and so in every filter built on it.
 uniform sampler2D u_facet_map;
 // Half extents of a box about the view's origin that holds the whole light, along the view's axes (metres; for
 // a sun's ortho view the tangents of its directions (a, b, 1), and 0): core/light_shape.py light_reach_box.
@@ -262,7 +264,7 @@ bool facet_clears_receiver(Receiver r, ivec2 texel, float depth) {
 // Receiver-plane test of one texel: the plane's depth at the texel's own centre, where the map sampled it,
 // so that a planar receiver matches its own texels exactly.
 float map_lit_plane(sampler2D map, ivec2 texel, Receiver r) {
-#ifdef FACET_MAP
+#ifdef FACET_FILTER
     if (map_lit(map, texel, receiver_depth_at(r, vec2(texel) + 0.5)) == 1.0) return 1.0;
     return facet_clears_receiver(r, texel, texelFetch(map, texel, 0).r) ? 1.0 : 0.0;
 #else

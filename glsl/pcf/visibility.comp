@@ -1,6 +1,7 @@
 // PCF: mean of bilinear comparisons on a regular taps×taps grid spanning ±radius texels, each texel against the
 // receiver's plane unless the facet it holds faces both the receiver and the light (FACET_MAP).
 #define FACET_MAP 1
+#define FACET_FILTER 1
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 
