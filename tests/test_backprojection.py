@@ -437,3 +437,17 @@ def test_wide_sun_samples_weigh_the_solid_angle_they_stand_for(angle):
     from penumbra.tests.test_spsm import wide_sun_ball_errors
     mae = wide_sun_ball_errors(angle, ("PCSS", "BACKPROJECTION"))
     assert mae["BACKPROJECTION"] <= 0.8 * mae["PCSS"]
+
+
+def test_umbra_is_proven_only_over_a_search_area_inside_the_map():
+    """Fuzz 30119: the camera inside a ball-shaped room, a 5 cm point light with a non-uniform scale, one small
+    ball as caster. The light's view holds only the receivers the ball can shadow, so pixels on the far walls lie
+    just past its map, and their search area was clipped to the map's edge. What lay inside it was the room's
+    neighbouring facets, concave around the pixel and so in front of its tangent plane, and the bound (every depth
+    nearer than the plane) called the pixels umbra: 13 pixels at V 0 that Cycles has lit (mae_shadow 0.78 against
+    a bound of 0.36). Umbra now needs the whole area inside the map."""
+    pytest.importorskip("bpy")
+    from penumbra.engine.measure import fuzz
+    m, limit = fuzz.shadow_score(fuzz.scene_params(30119), BP)
+    print("30119", m["mae_shadow"], "bound", limit, "pixels", m["n_shadow"])
+    assert m["n_shadow"] == 0 or m["mae_shadow"] <= limit

@@ -227,13 +227,15 @@ vec2 search_half(Pixel p, float z) {
     return min((abs(p.fp.centre) + p.fp.half_box) * s / p.tex, vec2(1.0e7));
 }
 
-// Texel range [lo, hi] (inclusive, level 0) of the search area for occluders no nearer than z; false if
-// the area misses the map. The centre is clamped to ±2e7 texels to keep ivec2 conversion in range.
-bool search_area(Pixel p, float z, out ivec2 lo, out ivec2 hi) {
+// Texel range [lo, hi] (inclusive, level 0) of the search area for occluders no nearer than z, clipped to
+// the map (`whole`: nothing was clipped); false if the area misses the map. The centre is clamped to ±2e7
+// texels to keep ivec2 conversion in range.
+bool search_area(Pixel p, float z, out ivec2 lo, out ivec2 hi, out bool whole) {
     vec2 h = search_half(p, z);
     vec2 c = clamp(p.r.map.xy, vec2(-2.0e7), vec2(2.0e7));
     lo = ivec2(floor(c - h));
     hi = ivec2(floor(c + h));
+    whole = all(greaterThanEqual(lo, ivec2(0))) && all(lessThan(hi, u_map_size));
     if (any(greaterThanEqual(lo, u_map_size)) || any(lessThan(hi, ivec2(0)))) return false;
     lo = max(lo, ivec2(0));
     hi = min(hi, u_map_size - 1);
@@ -1135,7 +1137,8 @@ void grow_to_support(inout ivec2 lo, inout ivec2 hi, int j) {
 // depth range, classify, narrow the area to occluders no nearer than z_min, bound again (finer), classify
 // and narrow once more before any micro-occluder is touched. Returns the class.
 int classify(Pixel p, float budget, out ivec2 lo, out ivec2 hi) {
-    bool inside = search_area(p, u_light_depth_range.x, lo, hi);
+    bool whole;
+    bool inside = search_area(p, u_light_depth_range.x, lo, hi, whole);
     int state = inside ? CLASS_BACKPROJECTED : CLASS_LIT;
 #if REFINE != REFINE_NONE
     float d_biased = p.d - p.r.bias;
@@ -1154,8 +1157,12 @@ int classify(Pixel p, float budget, out ivec2 lo, out ivec2 hi) {
             phi = max(phi, pz);
         }
         if (zr.x >= phi || zr.x >= p.d) state = CLASS_LIT;          // nothing nearer than the receiver
-        else if (zr.y < plo) state = CLASS_UMBRA;                   // everything nearer, no gap
-        else if (!search_area(p, zr.x, lo, hi)) state = CLASS_LIT;
+        // Umbra only over an area wholly inside the map: beyond it nothing is known, and the part inside may
+        // hold only surfaces in front of the receiver's plane that block none of its rays (a room's walls,
+        // concave around a pixel whose own texel lies just past the map's edge: fuzz 30119, 13 pixels at V 0
+        // that Cycles has lit).
+        else if (zr.y < plo && whole) state = CLASS_UMBRA;          // everything nearer, no gap
+        else if (!search_area(p, zr.x, lo, hi, whole)) state = CLASS_LIT;
     }
 #endif
     return state;
