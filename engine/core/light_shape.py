@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from .irradiance import spot_edge_tans
-from .shading import SUN_MAX_HALF
+from .shading import SUN_MAX_HALF, spot_uniforms
 from .snapshot import AREA, DISK, ELLIPSE, POINT, SPOT, SUN, Light
 
 
@@ -125,6 +125,29 @@ def light_shape_uniforms(light: Light, view) -> dict:
     whose footprint on the light plane depends on the receiver: light_view.glsl light_footprint): what
     filter kernels, samplers and their weights need."""
     emit = np.asarray(view.view, float)[:3, :3] @ np.asarray(light.direction, float)
+    cone = spot_cone_clip(light, view)
     return {"u_light_half": light_half_extent(light, view.face), "u_light_round": int(is_round(light)),
             "u_light_one_sided": int(light.kind == AREA), "u_light_emit": tuple(float(x) for x in emit),
-            "u_light_sphere": int(light.kind in (POINT, SPOT) and light.radius > 0.0)}
+            "u_light_sphere": int(light.kind in (POINT, SPOT) and light.radius > 0.0), "u_spot_cone": cone,
+            **(spot_uniforms(light) if cone[0] > 0.0 else {})}
+
+
+# A cone wider than this (tan of its half angle) clips no footprint worth the per-tap test.
+SPOT_CLIP_MAX_TAN = 100.0
+
+
+def spot_cone_clip(light: Light, view) -> tuple[float, float]:
+    """For a spot with a radius seen in its own view (its own axes, from its centre): tan of the cone's half angle
+    along the view's X and Y, with which light_view.glsl light_footprint keeps each receiver's kernels to the part
+    of the ball the cone lets it see. (0, 0) elsewhere: other lights, a cube face or stand-in view, a cone on
+    skewed axes (spot_linear) or one nearly as wide as a hemisphere."""
+    if light.kind != SPOT or light.radius <= 0.0 or light.spot_linear is not None or view.face is not None:
+        return (0.0, 0.0)
+    to_view = np.asarray(view.view, float)
+    to_light = np.linalg.inv(np.asarray(light.matrix, float))
+    scale = max(float(np.abs(light.position).max()), light.radius, 1.0)
+    if not (np.allclose(to_view[:3, :3], to_light[:3, :3], atol=1e-6)
+            and np.allclose(to_view[:3, 3], to_light[:3, 3], atol=1e-6 * scale)):
+        return (0.0, 0.0)
+    tx, ty = spot_cone_tans(light)
+    return (tx, ty) if max(tx, ty) <= SPOT_CLIP_MAX_TAN else (0.0, 0.0)

@@ -51,15 +51,18 @@ def penumbra_spread_at(worker, z: np.ndarray, d: np.ndarray, ortho: bool) -> np.
     return np.frombuffer(data, np.float32).reshape(-1, 2)[:n].astype(np.float64)
 
 
-def light_footprint_at(worker, local: np.ndarray, half, *, sphere: bool, ortho: bool = False) -> dict:
+def light_footprint_at(worker, local: np.ndarray, half, *, sphere: bool, ortho: bool = False,
+                       spot_cone=(0.0, 0.0)) -> dict:
     """glsl/common/light_view.glsl's light_footprint for receivers at light-local points (N, 3) under a light of
-    half extent `half` (x, y) → {"centre": (N, 2), "half_box": (N, 2), "axes": (N, 2, 2) (rows: plane x, y)};
-    runs on the GPU thread. Used to check the footprint against a ray projection of the light."""
+    half extent `half` (x, y), clipped by a spot's cone of half-angle tangents `spot_cone` (x, y; 0: none) →
+    {"centre": (N, 2), "half_box": (N, 2), "axes": (N, 2, 2) (rows: plane x, y)}; runs on the GPU thread. Used to
+    check the footprint against a ray projection of the light."""
     n = len(local)
     points = np.c_[np.asarray(local, np.float32), np.zeros(n, np.float32)].tobytes()
     data = _run_points(worker, "common/footprint_points.comp",
                        {"u_light_half": tuple(float(h) for h in half), "u_light_sphere": int(sphere),
-                        "u_light_ortho": int(ortho)}, [points], 32, n)
+                        "u_light_ortho": int(ortho), "u_spot_cone": tuple(float(t) for t in spot_cone)},
+                       [points], 32, n)
     out = np.frombuffer(data, np.float32).reshape(-1, 2, 4)[:n].astype(np.float64)
     # GLSL matrices are column-major: axes[0] is the column for kernel x.
     return {"centre": out[:, 0, :2], "half_box": out[:, 0, 2:],

@@ -17,6 +17,8 @@ uniform float u_bias;             // texels, scaled by the receiver's slope
 uniform float u_normal_offset;    // texels along the geometric normal
 uniform float u_terminator_offset = 0.0;  // Cycles' Shadow Terminator Geometry Offset (make_lit_receiver)
 
+#include "common/spot.glsl"
+
 vec3 light_local(vec3 p) {
     return (u_light_view * vec4(p, 1.0)).xyz;
 }
@@ -291,6 +293,9 @@ uniform int u_light_round;        // disk, ellipse, sphere, sun: kernels over a 
 uniform int u_light_one_sided;    // 1: a planar emitter, whose own cosine counts in a sample's weight
 uniform vec3 u_light_emit;        // its emission axis in the view's frame
 uniform int u_light_sphere = 0;   // 1: a point or spot light with a radius, in a perspective view
+// A spot with a radius in its own view: tan of its cone's half angle along the view's X and Y (core/light_shape.py
+// spot_cone_clip), with common/spot.glsl's uniforms set; (0, 0) otherwise.
+uniform vec2 u_spot_cone = vec2(0.0);
 
 // Where the kernel's unit disk (or square) lands on the view's light plane z = 0 for one receiver: kernel
 // position k stands for the plane point centre + axes·k, the ray from the receiver through it for its light
@@ -331,7 +336,44 @@ Footprint light_footprint(vec3 local) {
     f.centre = c * u;
     f.axes = a * outerProduct(u, u) + b * outerProduct(v, v);
     f.half_box = sqrt(a * a * u * u + b * b * v * v);
+    if (u_spot_cone.x > 0.0) {
+        // Cycles applies a spot's cone to each ray as it leaves the emitter (kernel/light/spot.h), so a receiver
+        // sees only the emitter points whose ray to it lies inside the cone: a disk of radius h·tan about the
+        // point straight above it along the axis. Under a narrow cone and a wide ball (fuzz 30111: a 1.4 m ball,
+        // a 5.4° cone, whose shadows Cycles draws as sharp as a 0.3 m light's) the kernels cover the smallest of
+        // three disks that hold what both regions share (the ball's footprint taken as the disk round its
+        // ellipse): either region's, or for a lens the one on its chord; light_sample_weight weighs each point
+        // by the cone and drops those off the ball's disk.
+        float big = max(a, b), cone = h * max(u_spot_cone.x, u_spot_cone.y);
+        vec2 between = local.xy - f.centre;
+        float gap = length(between);
+        vec2 centre = f.centre;
+        float radius = big;
+        if (cone < radius) { centre = local.xy; radius = cone; }
+        if (gap > 1e-9 * dist && gap < big + cone) {
+            float x0 = (gap * gap + big * big - cone * cone) / (2.0 * gap);     // the chord, from the ball's centre
+            float chord = sqrt(max(big * big - x0 * x0, 0.0));
+            if (x0 >= 0.0 && x0 <= gap && chord < radius) { centre = f.centre + between * (x0 / gap); radius = chord; }
+        }
+        if (radius < big) {
+            f.centre = centre;
+            f.axes = mat2(radius, 0.0, 0.0, radius);
+            f.half_box = vec2(radius);
+        }
+    }
     return f;
+}
+
+// For a footprint clipped by a spot's cone (u_spot_cone): the share of light a plane point q sends to a receiver
+// at light-local `local`: 0 off the ball's disk that faces the receiver (the ray from it through q misses the
+// disk), else Cycles' cone and blend for the ray from q to it (common/spot.glsl).
+float spot_point_weight(vec3 local, vec2 q) {
+    vec3 ray = local - vec3(q, 0.0);
+    float along = dot(local, ray);
+    if (!(along > 0.0)) return 0.0;
+    vec3 on_disk = local - ray * (dot(local, local) / along);      // where the ray meets the disk's plane
+    if (dot(on_disk, on_disk) > u_light_half.x * u_light_half.x) return 0.0;
+    return spot_attenuation(transpose(mat3(u_light_view)) * ray);
 }
 
 // The light-plane point kernel position k stands for.
@@ -371,5 +413,6 @@ float light_sample_weight(Receiver r, vec3 n, vec2 q) {
     vec3 to_sample = vec3(q, 0.0) - r.local;
     float d2 = max(dot(to_sample, to_sample), 1e-30);
     vec3 dir = to_sample * inversesqrt(d2);
-    return max(dot(n, dir), 0.0) / d2 * emitter_cosine(dir);
+    float w = max(dot(n, dir), 0.0) / d2 * emitter_cosine(dir);
+    return u_spot_cone.x > 0.0 && w > 0.0 ? w * spot_point_weight(r.local, q) : w;
 }
