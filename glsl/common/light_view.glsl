@@ -231,11 +231,10 @@ vec3 map_ray_point(vec2 map_pos, float depth) {
 }
 
 #ifdef FACET_MAP
-// The filters that reach texels away from the receiver's own (PCF, PCSS's search) compare them with the receiver's
-// plane
-// extended under them, and a surface that meets the receiver at a concave edge lies in front of that plane:
-// a room's far wall at its corner, a wall where the floor meets it. Extended, the plane runs behind that
-// surface, so it came out as a blocker and the corners of every room were drawn dark (fuzz 30032, 30088,
+// The filters that reach texels away from the receiver's own (PCF, PCSS's search) compare them with the
+// receiver's plane extended under them, and a surface that meets the receiver at a concave edge lies in front of
+// that plane: a room's far wall at its corner, a wall where the floor meets it. Extended, the plane runs behind
+// that surface, so it came out as a blocker and the corners of every room were drawn dark (fuzz 30032, 30088,
 // 30118). What the texel holds is one triangle (the facet map's normal, structures/depth_map.py): when the
 // receiver's shadow ray start and the whole light lie strictly on one side of its plane, no segment between
 // them crosses that plane, so that triangle blocks no part of the light from the receiver. FACET_FILTER applies
