@@ -15,7 +15,8 @@ from penumbra.engine.gpu.probes import light_footprint_at
 def test_clipped_footprint_holds_every_point_of_the_ball_the_cone_lets_a_receiver_see():
     """For receivers all over a spot's cone and beyond its rim, under cones narrower and wider than the ball: every
     point of the ball's facing disk whose ray to the receiver lies inside the cone crosses the light plane inside
-    the clipped footprint (a disk), and that disk is never wider than the ball's own footprint."""
+    the clipped footprint (a disk), and that disk is no wider than the ball's own footprint or the cone's disk
+    about the point straight above the receiver (without the clip the second fails)."""
     rng = np.random.default_rng(11)
     radius = 1.0
     for cone in (0.05, 0.15, 0.6):
