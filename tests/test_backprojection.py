@@ -445,7 +445,8 @@ def test_umbra_is_proven_only_over_a_search_area_inside_the_map():
     just past its map, and their search area was clipped to the map's edge. What lay inside it was the room's
     neighbouring facets, concave around the pixel and so in front of its tangent plane, and the bound (every depth
     nearer than the plane) called the pixels umbra: 13 pixels at V 0 that Cycles has lit (mae_shadow 0.78 against
-    a bound of 0.36). Umbra now needs the whole area inside the map."""
+    a bound of 0.36). Umbra now needs the pixel itself inside the map (the whole area inside it lost the umbra of
+    tests/test_extreme.py's near_light)."""
     pytest.importorskip("bpy")
     from penumbra.engine.measure import fuzz
     m, limit = fuzz.shadow_score(fuzz.scene_params(30119), BP)

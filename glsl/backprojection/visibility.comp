@@ -227,15 +227,13 @@ vec2 search_half(Pixel p, float z) {
     return min((abs(p.fp.centre) + p.fp.half_box) * s / p.tex, vec2(1.0e7));
 }
 
-// Texel range [lo, hi] (inclusive, level 0) of the search area for occluders no nearer than z, clipped to
-// the map (`whole`: nothing was clipped); false if the area misses the map. The centre is clamped to ±2e7
-// texels to keep ivec2 conversion in range.
-bool search_area(Pixel p, float z, out ivec2 lo, out ivec2 hi, out bool whole) {
+// Texel range [lo, hi] (inclusive, level 0) of the search area for occluders no nearer than z; false if
+// the area misses the map. The centre is clamped to ±2e7 texels to keep ivec2 conversion in range.
+bool search_area(Pixel p, float z, out ivec2 lo, out ivec2 hi) {
     vec2 h = search_half(p, z);
     vec2 c = clamp(p.r.map.xy, vec2(-2.0e7), vec2(2.0e7));
     lo = ivec2(floor(c - h));
     hi = ivec2(floor(c + h));
-    whole = all(greaterThanEqual(lo, ivec2(0))) && all(lessThan(hi, u_map_size));
     if (any(greaterThanEqual(lo, u_map_size)) || any(lessThan(hi, ivec2(0)))) return false;
     lo = max(lo, ivec2(0));
     hi = min(hi, u_map_size - 1);
@@ -1137,11 +1135,11 @@ void grow_to_support(inout ivec2 lo, inout ivec2 hi, int j) {
 // depth range, classify, narrow the area to occluders no nearer than z_min, bound again (finer), classify
 // and narrow once more before any micro-occluder is touched. Returns the class.
 int classify(Pixel p, float budget, out ivec2 lo, out ivec2 hi) {
-    bool whole;
-    bool inside = search_area(p, u_light_depth_range.x, lo, hi, whole);
+    bool inside = search_area(p, u_light_depth_range.x, lo, hi);
     int state = inside ? CLASS_BACKPROJECTED : CLASS_LIT;
 #if REFINE != REFINE_NONE
     float d_biased = p.d - p.r.bias;
+    bool own_inside = all(greaterThanEqual(p.r.map.xy, vec2(0.0))) && all(lessThan(p.r.map.xy, vec2(u_map_size)));
     for (int pass = 0; pass < 2 && state == CLASS_BACKPROJECTED; ++pass) {
         ivec2 qlo = lo, qhi = hi;
 #if GROW
@@ -1157,12 +1155,13 @@ int classify(Pixel p, float budget, out ivec2 lo, out ivec2 hi) {
             phi = max(phi, pz);
         }
         if (zr.x >= phi || zr.x >= p.d) state = CLASS_LIT;          // nothing nearer than the receiver
-        // Umbra only over an area wholly inside the map: beyond it nothing is known, and the part inside may
-        // hold only surfaces in front of the receiver's plane that block none of its rays (a room's walls,
-        // concave around a pixel whose own texel lies just past the map's edge: fuzz 30119, 13 pixels at V 0
-        // that Cycles has lit).
-        else if (zr.y < plo && whole) state = CLASS_UMBRA;          // everything nearer, no gap
-        else if (!search_area(p, zr.x, lo, hi, whole)) state = CLASS_LIT;
+        // Umbra only for a pixel inside the map: a view holds every receiver a caster can shadow, so a pixel past
+        // its edge is lit by design, and its search area, clipped to the edge, may hold only surfaces in front of
+        // its plane that block none of its rays (a room's walls, concave around it: fuzz 30119, 13 pixels at V 0
+        // that Cycles has lit). Asking for the whole area inside the map instead lost the umbra of a light almost
+        // touching its caster, whose area reaches far past the map (tests/test_extreme.py near_light: V 0.998).
+        else if (zr.y < plo && own_inside) state = CLASS_UMBRA;     // everything nearer, no gap
+        else if (!search_area(p, zr.x, lo, hi)) state = CLASS_LIT;
     }
 #endif
     return state;
