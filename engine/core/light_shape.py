@@ -132,6 +132,21 @@ def light_shape_uniforms(light: Light, view) -> dict:
             **(spot_uniforms(light) if cone[0] > 0.0 else {})}
 
 
+def light_frame(light: Light, target: np.ndarray | None = None) -> np.ndarray:
+    """World→local matrix of the light. Point lights have no axes of their own: aim -Z at `target`."""
+    m = np.array(light.matrix, dtype=np.float64)
+    if light.kind == POINT and target is not None:
+        forward = np.asarray(target, float) - m[:3, 3]
+        n = np.linalg.norm(forward)
+        forward = forward / n if n > 1e-12 else np.array([0.0, 0.0, -1.0])
+        up = np.array([0.0, 0.0, 1.0]) if abs(forward[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        x = np.cross(forward, up)
+        x /= np.linalg.norm(x)
+        y = np.cross(-forward, x)
+        m[:3, 0], m[:3, 1], m[:3, 2] = x, y, -forward
+    return np.linalg.inv(m)
+
+
 # A cone wider than this (tan of its half angle) clips no footprint worth the per-tap test.
 SPOT_CLIP_MAX_TAN = 100.0
 
@@ -144,7 +159,7 @@ def spot_cone_clip(light: Light, view) -> tuple[float, float]:
     if light.kind != SPOT or light.radius <= 0.0 or light.spot_linear is not None or view.face is not None:
         return (0.0, 0.0)
     to_view = np.asarray(view.view, float)
-    to_light = np.linalg.inv(np.asarray(light.matrix, float))
+    to_light = light_frame(light)
     scale = max(float(np.abs(light.position).max()), light.radius, 1.0)
     if not (np.allclose(to_view[:3, :3], to_light[:3, :3], atol=1e-6)
             and np.allclose(to_view[:3, 3], to_light[:3, 3], atol=1e-6 * scale)):

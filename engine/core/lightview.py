@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .snapshot import AREA, DISK, ELLIPSE, POINT, RECTANGLE, SPOT, SUN, Light
-from .light_shape import penumbra_spread, spot_cone_tans
+from .light_shape import light_frame, penumbra_spread, spot_cone_tans
 from .shading import SUN_MAX_HALF
 from .matrices import mat_uniform
 
@@ -70,21 +70,6 @@ class LightView:
             "u_map_size": (self.width, self.height),
             "u_texel_tan": max(tx, ty),
         }
-
-
-def light_frame(light: Light, target: np.ndarray | None = None) -> np.ndarray:
-    """World→local matrix of the light. Point lights have no axes of their own: aim -Z at `target`."""
-    m = np.array(light.matrix, dtype=np.float64)
-    if light.kind == POINT and target is not None:
-        forward = np.asarray(target, float) - m[:3, 3]
-        n = np.linalg.norm(forward)
-        forward = forward / n if n > 1e-12 else np.array([0.0, 0.0, -1.0])
-        up = np.array([0.0, 0.0, 1.0]) if abs(forward[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
-        x = np.cross(forward, up)
-        x /= np.linalg.norm(x)
-        y = np.cross(-forward, x)
-        m[:3, 0], m[:3, 1], m[:3, 2] = x, y, -forward
-    return np.linalg.inv(m)
 
 
 def light_extent_local(light: Light) -> np.ndarray:

@@ -265,12 +265,11 @@ bool facet_clears_receiver(Receiver r, ivec2 texel, float depth) {
 // Receiver-plane test of one texel: the plane's depth at the texel's own centre, where the map sampled it,
 // so that a planar receiver matches its own texels exactly.
 float map_lit_plane(sampler2D map, ivec2 texel, Receiver r) {
+    float lit = map_lit(map, texel, receiver_depth_at(r, vec2(texel) + 0.5));
 #ifdef FACET_FILTER
-    if (map_lit(map, texel, receiver_depth_at(r, vec2(texel) + 0.5)) == 1.0) return 1.0;
-    return facet_clears_receiver(r, texel, texelFetch(map, texel, 0).r) ? 1.0 : 0.0;
-#else
-    return map_lit(map, texel, receiver_depth_at(r, vec2(texel) + 0.5));
+    if (lit == 0.0 && facet_clears_receiver(r, texel, texelFetch(map, texel, 0).r)) lit = 1.0;
 #endif
+    return lit;
 }
 
 // Bilinear percentage-closer comparison at a fractional texel position, each texel against the receiver's
