@@ -13,7 +13,7 @@ from ..gpu.loops import chunk_count, chunk_uniforms
 from ..gpu.programs import bind_samplers, program, set_uniforms
 from ..gpu.state import gl_state
 from . import structure
-from ..core.light_shape import round_in_view
+from ..core.light_shape import light_shape_uniforms, round_in_view, spot_cone_clip
 from ..core.snapshot import AREA, SUN
 from .ssm_maps import FACET_SLOPE, SSM_MAPS
 
@@ -46,8 +46,11 @@ def build(frame, lc, precision: str, method: str, weighted: bool):
         # Shares clipped to a round light's disk where the view holds that disk (a sphere keeps its square: room
         # at 128², 0.0179 with the square, 0.0193 with the disk).
         round_ = round_in_view(lc.light, lc.view.face)
+        # A spot whose cone is narrower than its ball: each receiver's shares of the part it sees
+        # (glsl/ssm/patch.glsl spot_share), in the spot's own view only.
+        spot = light_shape_uniforms(lc.light, maps.view) if spot_cone_clip(lc.light, maps.view)[0] > 0.0 else None
         ssms = [scatter(frame, maps, patches, precision, method, weighted, occ if maps.facets else None, planar,
-                        round_)
+                        round_, spot)
                 if patches.count else None for patches, occ in zip(maps.patches, maps.occluder_maps())]
     front = ssms[0] if ssms[0] is not None else _zero(frame, maps.view)
     back = ssms[1] if len(ssms) > 1 and ssms[1] is not None else None
@@ -69,22 +72,24 @@ def _zero(frame, view):
 
 
 def scatter(frame, maps, patches, precision: str, method: str, weighted: bool, occluders=None,
-            planar: bool = True, round_: bool = False):
+            planar: bool = True, round_: bool = False, spot: dict | None = None):
     """Sum the hidden light fraction of every micro-patch in `patches` (a PatchList, built on the GPU) into
     an RG soft shadow map (r: nearest receiver, g: farthest). §3.4 on the GPU; precision and batching per
     appendix A. The instance count and the batches come from the count the patch list read back.
     `occluders`: the occluder map the patches come from, for sloped facets (glsl/ssm/patch.glsl), or None
     for the paper's flat micro-patches. `planar`: a planar emitter, whose weights take the receiver's normal.
-    `round_`: shares of the ellipse inscribed in the light's rectangle (glsl/ssm/patch.glsl light_share)."""
+    `round_`: shares of the ellipse inscribed in the light's rectangle (glsl/ssm/patch.glsl light_share).
+    `spot`: the light's shape uniforms (light_shape_uniforms) where a spot's cone clips its ball (spot_share)."""
     ctx, view = frame.ctx, maps.view
     size = (view.width, view.height)
     # The clipped weights only where some receiver's horizon cuts the light: they cost the scatter twice the
     # time on llvmpipe even where no receiver takes them (plane 6.1 -> 13.6 s at 128²).
     defines = {"SSM_WEIGHTED": int(weighted), "SSM_FACETS": int(occluders is not None),
-               "SSM_HORIZON_CUT": int(weighted and planar and maps.horizon_cut), "SSM_ROUND": int(round_)}
+               "SSM_HORIZON_CUT": int(weighted and planar and maps.horizon_cut), "SSM_ROUND": int(round_),
+               "SSM_SPOT_CLIP": int(spot is not None)}
     uniforms = {**view.uniforms(), **frame.bias_uniforms, "u_half": maps.half, "u_ortho": int(view.is_ortho),
                 "u_bias_texels": maps.bias, "u_facet_slope": FACET_SLOPE,
-                "u_receiver_normal": int(planar)}
+                "u_receiver_normal": int(planar), **(spot or {})}
     patches.buffer.bind_to_storage_buffer(0)
     m = patches.count
     receivers = {name: maps.maps[key] for name, key in (("u_near_a", "near"), ("u_near_b", "near_n"),

@@ -260,7 +260,9 @@ class Pvsm(Technique):
         cam = frame.snap.camera
         info_wanted = bool(s.collect_stats or s.debug_passes)
         uniforms = {
-            **lc.uniforms, "u_light_half": half,
+            # the light's own shape (a spot's cone clip reads it: visibility.comp set_light_part), and the
+            # half extent of the box its kernels stand for it by
+            **lc.uniforms, **shape, "u_kernel_half": half, "u_round_box": ROUND_BOX,
             "u_search_scale": (search_size[0] / w, search_size[1] / h),
             "u_fine_block": fine_block,
             "u_filter_levels": level_count(w, h),

@@ -44,7 +44,8 @@ half-float with the paper's workaround: ⌊√M⌋ batches summed separately and
 
 Lights: rectangle and square exactly; disk, ellipse and sun (disk of directions) exactly in their own view, each
 patch's rectangle of the light clipped to the round shape (glsl/ssm/patch.glsl light_share, ours); sphere lights
-(point/spot radius) and round lights seen from a cube face or a sun's rim view through their bounding rectangle.
+(point/spot radius) and round lights seen from a cube face or a sun's rim view through their bounding rectangle;
+under a spot's cone narrower than its ball, the disk of it each receiver sees (glsl/ssm/patch.glsl spot_share).
 
 Map size (ours, `ssm_refine`): a light whose patches update a texel or two each is a point-like light, whose soft
 shadow map is a hard one; its maps are refined up to the shared Shadow Map Size (engine/structures/ssm_maps.py

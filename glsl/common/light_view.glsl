@@ -303,6 +303,7 @@ struct Footprint {
     vec2 centre;
     mat2 axes;
     vec2 half_box;      // half extent of the footprint's bounding box about its centre
+    bool cone_clipped;  // a spot's cone cut it down to the disk centre ± half_box.x (u_spot_cone)
 };
 
 // A sphere light does not lie in the plane: each receiver sees it as a disk of radius R through its centre,
@@ -321,6 +322,7 @@ Footprint light_footprint(vec3 local) {
     f.centre = vec2(0.0);
     f.axes = mat2(u_light_half.x, 0.0, 0.0, u_light_half.y);
     f.half_box = u_light_half;
+    f.cone_clipped = false;
     float h = -local.z, dist = length(local);
     float r = u_light_half.x, rho = length(local.xy);
     // Behind the plane, or inside the sphere (no disk faces it): the plain disk.
@@ -357,6 +359,7 @@ Footprint light_footprint(vec3 local) {
             f.centre = centre;
             f.axes = mat2(radius, 0.0, 0.0, radius);
             f.half_box = vec2(radius);
+            f.cone_clipped = true;
         }
     }
     return f;

@@ -88,6 +88,28 @@ vec2 g_light_e;                   // half extent of the light filter alone (texe
 vec2 g_pad;                       // half extent of the pixel footprint on the map (texels), 0 without AA
 float g_blocker_depth;            // the kernel's blocker plane (z-average), set by soft_kernel
 vec3 g_n;                         // shading normal in the view's frame (a sun's weights)
+// The part of the light this pixel's kernels stand for, on the view's light plane (metres; tangents for a
+// sun): u_kernel_half about the axis, or under a spot's cone narrower than its ball the disk of the ball the
+// receiver sees (light_view.glsl light_footprint, as PCSS takes it; ours, fuzz 30111), taken as its square.
+uniform vec2 u_kernel_half;       // the light's half extent as a box kernel (a round light's of its variance)
+uniform float u_round_box;        // that box's half extent for a disk of radius 1 (pvsm.py ROUND_BOX)
+vec2 g_light_half;
+vec2 g_light_centre;
+bool g_spot_clipped;              // the part is a spot's clipped disk: weights take the cone (kernel_sums)
+
+void set_light_part(vec3 local) {
+    g_light_half = u_kernel_half;
+    g_light_centre = vec2(0.0);
+    g_spot_clipped = false;
+    if (u_spot_cone.x > 0.0) {
+        Footprint f = light_footprint(local);
+        g_spot_clipped = f.cone_clipped;
+        if (f.cone_clipped) {
+            g_light_half = f.half_box * u_round_box;
+            g_light_centre = f.centre;
+        }
+    }
+}
 
 // Receiver depths to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
 // and farthest points over the cell (its corners), less the bias. Nearer than the nearest, the cell's minimum
@@ -122,9 +144,18 @@ int cap_level(float e, int levels) {
 
 // Eq. 1's α as a half extent in texels of the light filter: h·(1/z_o − 1/z_y) tangents (perspective; the
 // paper's (z_y − z_o)·z_n/(z_y·z_o) at the map plane z_n) or tan(angle/2)·(z_y − z_o) metres (sun).
+float filter_spread(float zo, float zy) {
+    return u_light_ortho == 1 ? max(zy - zo, 0.0) : max(1.0 / max(zo, 1e-30) - 1.0 / zy, 0.0);
+}
+
 vec2 filter_half_texels(float zo, float zy) {
-    float spread = u_light_ortho == 1 ? max(zy - zo, 0.0) : max(1.0 / max(zo, 1e-30) - 1.0 / zy, 0.0);
-    return u_light_half * spread / u_texel_tan;
+    return g_light_half * filter_spread(zo, zy) / u_texel_tan;
+}
+
+// Where the light–receiver pyramid's section at depth zo is centred, relative to the receiver (texels): the
+// light part's centre seen through that depth (0 for a light about the view's axis).
+vec2 filter_centre_texels(float zo, float zy) {
+    return g_light_centre * filter_spread(zo, zy) / u_texel_tan;
 }
 
 // ---- §4 step 3: z-averaging over the low-resolution map --------------------------------------------------
@@ -143,6 +174,7 @@ vec2 filter_half_texels(float zo, float zy) {
 // reaches a shadow is not skipped as fully lit.
 vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
     e += pad;
+    vec2 receiver = g_r.map.xy * u_search_scale;
     // The finest level whose cells the box spans at most u_cap times (the coarsest one past that).
     int l = 0;
     int cap = min(u_cap, PVSM_SEARCH_CELLS - 2);
@@ -165,7 +197,8 @@ vec2 average_blockers(vec2 c, vec2 e, vec2 pad) {
             if (!(zmin < dc.y))
                 continue;
             vec2 reach = min(max(filter_half_texels(zmin, g_depth) * u_search_scale, vec2(0.5)) + pad, e);
-            vec2 w = min(vec2(i + 1, j + 1) * s, c + reach) - max(vec2(i, j) * s, c - reach);
+            vec2 at = receiver + filter_centre_texels(zmin, g_depth) * u_search_scale;    // the section's centre
+            vec2 w = min(vec2(i + 1, j + 1) * s, at + reach) - max(vec2(i, j) * s, at - reach);
             if (w.x > 0.0 && w.y > 0.0) {
                 // Each cell weighs the share of the pyramid's section it fills, i.e. the share of the light it
                 // hides: a layer that hides all of it counts 1 whatever its depth (a plain texel count would
@@ -286,7 +319,7 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
     // Kernel coordinates → light plane: the kernel's bounding box is the light (exact without AA, where the
     // kernel is the light seen through the blocker plane; stretched over the pixel footprint with AA).
     vec2 box = vec2(hx, hy + abs(u.y));
-    vec2 to_light = u_light_half / box;
+    vec2 to_light = g_light_half / box;
     float zr = max(g_r.map.z, 1e-30);
     vec2 foot = g_r.local.xy;
     // A sun's view: a kernel offset through the blocker plane is the tangent of the direction to the sun
@@ -324,7 +357,8 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
             w = wx * wy;
 #if WEIGHTED
             if (inside && u_light_ortho == 0) {
-                vec4 r = (vec4(xa, max(float(j) * s, ya), xb, min(float(j + 1) * s, yb)) - c.xyxy) * to_light.xyxy;
+                vec4 r = (vec4(xa, max(float(j) * s, ya), xb, min(float(j + 1) * s, yb)) - c.xyxy) * to_light.xyxy
+                       + g_light_centre.xyxy;
                 // Midpoint rule: the cell's area times the irradiance density at its centre, cosθ_r·cosθ_l/d²
                 // for a receiver facing the light = 1/(1 + |q|²)² with q its offset in units of the height.
                 // Against the exact parallel-rectangle form factor (as SSM's ssm/patch.glsl integrates it)
@@ -332,6 +366,8 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
                 vec2 qc = (0.5 * (r.xy + r.zw) - foot) / zr;
                 float kw = 1.0 / (1.0 + dot(qc, qc));
                 w *= kw * kw;
+                // a spot's clipped disk: the cone at the cell's centre, and none off the ball (PCSS's weights)
+                if (g_spot_clipped) w *= spot_point_weight(g_r.local, 0.5 * (r.xy + r.zw));
             } else if (inside) {
                 // A sun: its directions are uniform in solid angle, which the map's tangent plane holds with
                 // density cos³θ (dΩ = cos³θ dA for a unit-height plane), each carrying the receiver's
@@ -371,7 +407,8 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
                 float z = texelFetch(u_depth_map, t, 0).r;
                 vec2 own = filter_half_texels(z, g_depth);
                 bool near_receiver = all(lessThan(own, 0.25 * g_light_e))
-                    && any(greaterThan(abs(vec2(t) + 0.5 - c), own + g_pad + 0.5 * s));
+                    && any(greaterThan(abs(vec2(t) + 0.5 - g_r.map.xy - filter_centre_texels(z, g_depth)),
+                                       own + g_pad + 0.5 * s));
                 if (z < receiver_depth_at(g_r, vec2(t) + 0.5) && !near_receiver)
                     hidden += 1.0;
             }
@@ -390,7 +427,15 @@ float occluded_share(vec2 c, mat2 h, int l) {
     return sums.y > 0.0 ? clamp(sums.x / sums.y, 0.0, 1.0) : 0.0;
 }
 
-// The kernel of Eq. 1 (with the pixel footprint under anti-aliasing) around the receiver, in this map's
+// The kernel's centre in this map's texels: the receiver's, moved by where the light part's centre is seen
+// through the blockers' mean depth.
+vec2 kernel_centre(float z_avg, float weight) {
+    vec2 span = u_virtual_hi - u_virtual_lo;
+    float far = max(span.x, span.y);
+    return g_r.map.xy + (weight > 0.0 ? clamp(filter_centre_texels(z_avg, g_depth), -far, far) : vec2(0.0));
+}
+
+// The kernel of Eq. 1 (with the pixel footprint under anti-aliasing) around its centre, in this map's
 // texels, from the blockers' mean depth; sets g_light_e.
 mat2 soft_kernel(float z_avg, float weight, mat2 phi) {
     vec2 e = weight > 0.0 ? filter_half_texels(z_avg, g_depth) : vec2(0.0);
@@ -475,6 +520,7 @@ void main() {
     if (pixel_lit(px)) {
         vec3 p = texelFetch(g_position, px, 0).xyz, ng = texelFetch(g_geometric, px, 0).xyz;
         g_r = pixel_receiver(px);
+        set_light_part(g_r.local);
         g_r.bias = slope_scaled_bias(g_r);  // blockers searched and filtered over a whole region
         g_n = view_direction(texelFetch(g_normal, px, 0).xyz);
         g_depth = g_r.map.z - g_r.bias;
@@ -485,9 +531,15 @@ void main() {
 #if MODE == 2
         vec2 blockers = k.xy;
 #else
-        // Search box: the light seen from the receiver through the near plane, capped.
-        vec2 search = clamp(filter_half_texels(u_light_depth_range.x, g_depth), vec2(0.5), vec2(u_max_radius));
-        vec2 blockers = average_blockers(g_r.map.xy * u_search_scale, search * u_search_scale,
+        // Search box: the light seen from the receiver through the near plane; with the light part off the
+        // receiver's axis (set_light_part) the box round that section and the receiver, the pyramid's apex,
+        // since the sections in between slide from one to the other. Capped about the receiver.
+        vec2 near_centre = filter_centre_texels(u_light_depth_range.x, g_depth);
+        vec2 near_half = filter_half_texels(u_light_depth_range.x, g_depth);
+        vec2 lo = clamp(near_centre - near_half, -u_max_radius, 0.0);
+        vec2 hi = clamp(near_centre + near_half, 0.0, u_max_radius);
+        vec2 search = max(0.5 * (hi - lo), vec2(0.5));
+        vec2 blockers = average_blockers((g_r.map.xy + 0.5 * (lo + hi)) * u_search_scale, search * u_search_scale,
                                          pad * u_search_scale);
 #endif
         info.x = 0.0;
@@ -495,13 +547,13 @@ void main() {
             mat2 h = soft_kernel(blockers.x, blockers.y, phi);
 #if MODE == 1
             float r = predicted_texel(phi, h);
-            splat(g_r.map.xy, h, r);
+            splat(kernel_centre(blockers.x, blockers.y), h, r);
             kernel = vec4(blockers, r, 2.0);
 #else
             float n_screen;
             int l = filter_level(phi, h, n_screen);
             int searched = g_visited;
-            vec2 sums = kernel_sums(g_r.map.xy, h, l);
+            vec2 sums = kernel_sums(kernel_centre(blockers.x, blockers.y), h, l);
 #if CHUNKED && MODE == 0
             vec4 part = (u_chunk > 0 ? imageLoad(u_partial, px) : vec4(0.0)) + vec4(sums, g_visited - searched, 0.0);
             if (u_chunk < u_chunks - 1) {

@@ -45,6 +45,29 @@ float light_share(vec4 ab) {
 #endif
 }
 
+#ifndef SSM_SPOT_CLIP
+#define SSM_SPOT_CLIP 0                 // 1: a spot's cone clips each receiver's view of its ball (spot_share)
+#endif
+#if SSM_SPOT_CLIP
+// Ours, as PCSS and BACKPROJECTION have it (common/light_view.glsl light_footprint): under a spot's cone
+// narrower than its ball a receiver sees only the part of the ball whose rays to it lie inside the cone, a
+// disk far smaller than the ball's square (fuzz 30111: a 1.4 m ball behind a 5.4° cone). spot_receiver sets
+// that disk for the receiver at hand; a patch whose back-projection onto the light plane is x (metres: window
+// offsets over the spread, x0, y0, x1, y1) then hides the share of the disk it covers, taken as uniform (the
+// cone's blend across so small a disk left out).
+Footprint g_spot;
+bool g_spot_clipped = false;
+
+void spot_receiver(vec3 local) {
+    g_spot = light_footprint(local);
+    g_spot_clipped = g_spot.cone_clipped;
+}
+
+float spot_share(vec4 x) {
+    return disk_share((x - g_spot.centre.xyxy) / g_spot.half_box.xyxy);
+}
+#endif
+
 bool depth_valid(float z) {
     return z > 0.0 && z < EMPTY_DEPTH;
 }
@@ -207,6 +230,9 @@ float patch_occlusion_fast(vec4 d, float zo, float inv_zo, float zr, vec2 inv_2h
     // The receiver's own surface is kept out by patch_can_shadow; this only guards the spread's sign.
     if (!(zr > 0.0 && zr < EMPTY_DEPTH) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     float s = u_ortho == 1 ? zr - zo : inv_zo - 1.0 / zr;     // penumbra_spread, 1/zo hoisted per patch
+#if SSM_SPOT_CLIP
+    if (g_spot_clipped) return spot_share(d / s);
+#endif
     vec2 k = inv_2h / s;
     vec4 ab = clamp(vec4(0.5) + d * k.xyxy, 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;
@@ -254,6 +280,9 @@ float facet_occlusion(vec4 d, vec4 edges, float zo, float zr, vec2 inv_2h, vec2 
     if (!(zr > 0.0 && zr < EMPTY_DEPTH) || zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     vec4 s = u_ortho == 1 ? zr - edges : edges - 1.0 / zr;       // each side's penumbra_spread
     if (any(lessThanEqual(s, vec4(0.0)))) return 0.0;
+#if SSM_SPOT_CLIP
+    if (g_spot_clipped) return spot_share(d / s.xzyw);
+#endif
     vec4 ab = clamp(vec4(0.5) + d * (inv_2h.xyxy / s.xzyw), 0.0, 1.0);
     vec2 w = ab.zw - ab.xy;                 // negative along an axis where the receiver sees the facet from behind
 #if SSM_WEIGHTED
@@ -269,6 +298,9 @@ float patch_occlusion(vec2 patch_texel, float zo, vec2 t, float zr, vec3 n) {
     if (zo >= zr * (1.0 - u_bias_texels)) return 0.0;
     float s = penumbra_spread(zo, zr, u_ortho);
     if (!(s > 0.0)) return 0.0;
+#if SSM_SPOT_CLIP
+    if (g_spot_clipped) return spot_share((patch_window(patch_texel) - t.xyxy) / s);
+#endif
     // Light [-h, h] → [0, 1]:  a = 1/2 + (lo - t) / (2 h s).  Clamping keeps the infinities finite.
     vec2 k = 1.0 / (2.0 * max(u_half, vec2(1e-9)) * s);    // 1e-9 as in weighted_fraction
     vec4 ab = clamp(vec4(0.5) + (patch_window(patch_texel) - t.xyxy) * k.xyxy, 0.0, 1.0);

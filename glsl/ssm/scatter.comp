@@ -30,6 +30,9 @@ float record_occlusion(Patch p, ivec2 texel, vec4 a, sampler2D b_map, sampler2D 
     if (!depth_valid(a.x)) return 0.0;
     Receiver r = ssm_receiver(a, texelFetch(b_map, texel, 0), texelFetch(c_map, texel, 0).r);
     if (!patch_can_shadow(r, p.data.xy, p.data.z)) return 0.0;
+#if SSM_SPOT_CLIP
+    spot_receiver(r.local);
+#endif
     vec2 t = map_window(vec2(texel) + 0.5);
     float zr = a.x;
     receiver_eye(r, t, zr);

@@ -22,6 +22,9 @@ layout(location = 0) out vec2 f_occlusion;
 float record_occlusion(ivec2 texel, vec4 a, sampler2D b_map, sampler2D c_map, vec2 t, vec2 inv_2h, float tw1) {
     Receiver r = ssm_receiver(a, texelFetch(b_map, texel, 0), texelFetch(c_map, texel, 0).r);
     if (!patch_can_shadow(r, v_patch, v_depth.x)) return 0.0;
+#if SSM_SPOT_CLIP
+    spot_receiver(r.local);
+#endif
     float zr = a.x;
     receiver_eye(r, t, zr);
 #if SSM_FACETS
