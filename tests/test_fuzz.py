@@ -479,6 +479,32 @@ def test_failure_class_names_a_caster_the_light_centre_sees_edge_on():
     assert "edge-on caster" in fuzz.failure_class(params, [], snap).split(", ")
 
 
+def test_failure_class_names_a_light_or_camera_inside_an_open_caster():
+    """From the extracted triangles: a lamp or the camera inside a caster that is not closed (fuzz 30185, a lamp
+    inside a 5x Suzanne; 30091, the camera inside a 10x one), where light leaves only by the openings. Not a
+    point beside the open caster, and not one inside a closed caster (the pipeline decides that one exactly)."""
+    from penumbra.engine.blender.extract import extract
+    from penumbra.engine.core.snapshot import POINT, Light
+    from penumbra.engine.measure import stress
+    closed = stress.box((-1, -1, 0), (1, 1, 2))
+    lid = np.flatnonzero(np.abs(closed[:, :, 2] - 2.0).max(axis=1) <= 1e-9)
+    open_box = np.delete(closed, lid[:1], axis=0)       # one of its lid's two triangles gone
+
+    def inside(mesh, at):
+        lamp = Light("Lamp", POINT, stress.look_at(at, (0.0, 0.0, 0.0)), np.ones(3), 100.0, radius=0.1)
+        snap = stress.assemble([("Box", mesh, True, True)], [lamp], stress.camera(), "shell")
+        return fuzz.inside_open_casters(snap)
+    assert len(open_box) == len(closed) - 1
+    assert inside(open_box, (0.2, 0.1, 0.7)) == ["light"]
+    assert inside(open_box, (3.0, 0.1, 0.7)) == []
+    assert inside(closed, (0.2, 0.1, 0.7)) == []
+    for seed, what in ((30185, "light"), (30091, "camera")):
+        params = fuzz.scene_params(seed)
+        scene = fuzz.build(params, (16, 16))
+        snap = extract(bpy.context.evaluated_depsgraph_get(), scene)
+        assert f"{what} inside an open caster" in fuzz.failure_class(params, [], snap).split(", ")
+
+
 def test_fireflies_in_the_reference_are_told_from_hard_edges():
     """A light Cycles' light tree picks with a tiny probability comes out as fireflies that each seed puts in
     other pixels (fuzz 27032): the failure report names that class. A hard light edge, or a small lit patch,

@@ -522,6 +522,8 @@ def failure_class(params: dict, warnings: list[str], snap=None, cyc=None) -> str
         classes.append("light crosses a caster")
     if snap is not None and edge_on_casters(snap):
         classes.append("edge-on caster")
+    if snap is not None:
+        classes += [f"{what} inside an open caster" for what in inside_open_casters(snap)]
     if any("treated as lit" in w for w in warnings):
         classes.append("wide light (treated as lit)")
     if params["camera"]["inside"]:
@@ -558,6 +560,51 @@ def crossing_lights(snap) -> list[str]:
                for i in np.flatnonzero(near)):
             out.append(light.name)
     return out
+
+
+# A point lies inside an open caster when at least INSIDE_SHARE of the rays from it in OPEN_SHELL_RAYS directions
+# (those whose count of crossings is to be trusted) cross it an odd number of times: a closed surface gives all
+# of them, a huge Suzanne around the point (open at its eyes) 60-64 of 64, a point beside it none.
+OPEN_SHELL_RAYS = 32
+INSIDE_SHARE = 0.75
+
+
+def _ray_directions(n: int) -> np.ndarray:
+    """n directions spread evenly over the sphere (a Fibonacci spiral), (n, 3)."""
+    k = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * k / n
+    phi = k * math.pi * (3.0 - math.sqrt(5.0))
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def inside_open_casters(snap) -> list[str]:
+    """"camera" and/or "light" where the camera or a point, spot or area light's centre lies inside a caster
+    that is not closed (snap.is_closed): the pipeline leaves a light walled off by a closed caster unlit
+    (lightview.enclosing_shell), but through an open one the light reaches out only by its openings, which one
+    map from the light holds in no single layer (fuzz 30185 and 30192: a lamp inside a 5-7x Suzanne, the floor
+    outside in umbra for Cycles, HARD and REFERENCE, PCSS, SSM and PVSM leaking 0.13-0.24; 30091: the camera
+    inside a 10x Suzanne under a 180° sun)."""
+    from ..core import solids
+    from ..core.snapshot import SUN
+    points = [("camera", np.linalg.inv(np.asarray(snap.camera.view, float))[:3, 3])]
+    points += [("light", np.asarray(light.position, float)) for light in snap.lights if light.kind != SUN]
+    bounds = snap.object_bounds()
+    directions = _ray_directions(OPEN_SHELL_RAYS)
+    found = []
+    for what, point in points:
+        if what in found:
+            continue
+        holds = np.all((point >= bounds[:, 0]) & (point <= bounds[:, 1]), axis=1)
+        for index in np.flatnonzero(holds):
+            if not snap.objects[int(index)].caster or snap.is_closed(int(index)):
+                continue
+            triangles = snap.drawn_triangles(int(index))
+            counts = [c for c in (solids.crossings(point, d, triangles) for d in directions) if c is not None]
+            if counts and sum(c % 2 for c in counts) >= INSIDE_SHARE * len(counts):
+                found.append(what)
+                break
+    return found
 
 
 # A caster is edge-on to a light when at least EDGE_ON_SHARE of its area lies within EDGE_ON_SINE (about 6°)
