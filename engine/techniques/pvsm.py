@@ -277,7 +277,7 @@ class Pvsm(Technique):
         }
         # Irradiance weights: per light-plane position for a light at a finite distance, per direction for a
         # sun (visibility.comp); a delta light has no kernel to weight.
-        defines = {"WEIGHTED": int(weighted),
+        defines = {"WEIGHTED": int(weighted), "SPOT_CLIP": int(shape["u_spot_cone"][0] > 0.0),
                    "INFO": int(info_wanted)}
         images = {0: out}
         info = None

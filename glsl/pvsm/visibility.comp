@@ -91,6 +91,11 @@ vec3 g_n;                         // shading normal in the view's frame (a sun's
 // The part of the light this pixel's kernels stand for, on the view's light plane (metres; tangents for a
 // sun): u_kernel_half about the axis, or under a spot's cone narrower than its ball the disk of the ball the
 // receiver sees (light_view.glsl light_footprint, as PCSS takes it; ours, fuzz 30111), taken as its square.
+// SPOT_CLIP (pvsm.py: a spot's own view with u_spot_cone set) compiles that in; without it every kernel is
+// centred on its receiver, as before.
+#ifndef SPOT_CLIP
+#define SPOT_CLIP 0
+#endif
 uniform vec2 u_kernel_half;       // the light's half extent as a box kernel (a round light's of its variance)
 uniform float u_round_box;        // that box's half extent for a disk of radius 1 (pvsm.py ROUND_BOX)
 vec2 g_light_half;
@@ -101,14 +106,14 @@ void set_light_part(vec3 local) {
     g_light_half = u_kernel_half;
     g_light_centre = vec2(0.0);
     g_spot_clipped = false;
-    if (u_spot_cone.x > 0.0) {
-        Footprint f = light_footprint(local);
-        g_spot_clipped = f.cone_clipped;
-        if (f.cone_clipped) {
-            g_light_half = f.half_box * u_round_box;
-            g_light_centre = f.centre;
-        }
+#if SPOT_CLIP
+    Footprint f = light_footprint(local);
+    g_spot_clipped = f.cone_clipped;
+    if (f.cone_clipped) {
+        g_light_half = f.half_box * u_round_box;
+        g_light_centre = f.centre;
     }
+#endif
 }
 
 // Receiver depths to compare a search cell [lo, hi] (level-0 texels) against: the receiver plane's nearest
@@ -155,7 +160,11 @@ vec2 filter_half_texels(float zo, float zy) {
 // Where the light–receiver pyramid's section at depth zo is centred, relative to the receiver (texels): the
 // light part's centre seen through that depth (0 for a light about the view's axis).
 vec2 filter_centre_texels(float zo, float zy) {
+#if SPOT_CLIP
     return g_light_centre * filter_spread(zo, zy) / u_texel_tan;
+#else
+    return vec2(0.0);
+#endif
 }
 
 // ---- §4 step 3: z-averaging over the low-resolution map --------------------------------------------------
@@ -367,7 +376,9 @@ vec2 kernel_sums(vec2 c, mat2 h, int l) {
                 float kw = 1.0 / (1.0 + dot(qc, qc));
                 w *= kw * kw;
                 // a spot's clipped disk: the cone at the cell's centre, and none off the ball (PCSS's weights)
+#if SPOT_CLIP
                 if (g_spot_clipped) w *= spot_point_weight(g_r.local, 0.5 * (r.xy + r.zw));
+#endif
             } else if (inside) {
                 // A sun: its directions are uniform in solid angle, which the map's tangent plane holds with
                 // density cos³θ (dΩ = cos³θ dA for a unit-height plane), each carrying the receiver's
