@@ -64,7 +64,8 @@ void spot_receiver(vec3 local) {
 }
 
 float spot_share(vec4 x) {
-    return disk_share((x - g_spot.centre.xyxy) / g_spot.half_box.xyxy);
+    // the lens of cone and ball can shrink to a point where their rims touch: a zero radius still divides
+    return disk_share((x - g_spot.centre.xyxy) / max(g_spot.half_box.xyxy, vec4(1e-12)));
 }
 #endif
 
