@@ -439,7 +439,7 @@ def test_wide_sun_samples_weigh_the_solid_angle_they_stand_for(angle):
     assert mae["BACKPROJECTION"] <= 0.8 * mae["PCSS"]
 
 
-def test_umbra_is_proven_only_over_a_search_area_inside_the_map():
+def test_umbra_is_proven_only_for_a_pixel_inside_the_map():
     """Fuzz 30119: the camera inside a ball-shaped room, a 5 cm point light with a non-uniform scale, one small
     ball as caster. The light's view holds only the receivers the ball can shadow, so pixels on the far walls lie
     just past its map, and their search area was clipped to the map's edge. What lay inside it was the room's

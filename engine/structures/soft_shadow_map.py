@@ -13,7 +13,7 @@ from ..gpu.loops import chunk_count, chunk_uniforms
 from ..gpu.programs import bind_samplers, program, set_uniforms
 from ..gpu.state import gl_state
 from . import structure
-from ..core.light_shape import light_shape_uniforms, round_in_view, spot_cone_clip
+from ..core.light_shape import light_shape_uniforms, round_in_view
 from ..core.snapshot import AREA, SUN
 from .ssm_maps import FACET_SLOPE, SSM_MAPS
 
@@ -48,7 +48,8 @@ def build(frame, lc, precision: str, method: str, weighted: bool):
         round_ = round_in_view(lc.light, lc.view.face)
         # A spot whose cone is narrower than its ball: each receiver's shares of the part it sees
         # (glsl/ssm/patch.glsl spot_share), in the spot's own view only.
-        spot = light_shape_uniforms(lc.light, maps.view) if spot_cone_clip(lc.light, maps.view)[0] > 0.0 else None
+        shape = light_shape_uniforms(lc.light, maps.view)
+        spot = shape if shape["u_spot_cone"][0] > 0.0 else None
         ssms = [scatter(frame, maps, patches, precision, method, weighted, occ if maps.facets else None, planar,
                         round_, spot)
                 if patches.count else None for patches, occ in zip(maps.patches, maps.occluder_maps())]
