@@ -354,6 +354,40 @@ def area_sample_count(light: Light, n: int, share: float) -> int:
     return int(min(np.ceil(n * EFFECTIVE_SHARE / max(share, 1e-12)), n * CONE_SAMPLES_MAX))
 
 
+# more_samples: the effective samples (Kish's (Σw)²/Σw², per pixel) a light's penumbra must average, as a share
+# of the setting's count. At 256 samples the built-in scenes' penumbrae average 0.70 (city) to 1.0 of it, and
+# those are where 256 was found enough (README, REFERENCE); half of it leaves them alone and lifts the sets
+# whose receivers each weigh a small part of the light (seeds 29263-29362: 16 of their lights, most of them
+# suns wider than 100°, at 0.12-0.49).
+EFFECTIVE_TARGET = 0.5
+PENUMBRA_LEVELS = (1e-3, 1.0 - 1e-3)     # a pixel's visibility strictly between these: in the penumbra
+
+
+def more_samples(sums: np.ndarray, square_weights: np.ndarray, served: np.ndarray, n_done: int, n: int) -> int:
+    """How many samples to add to a set of `n_done` so that its penumbra averages as well as n·EFFECTIVE_TARGET
+    equal samples would, from accumulate.comp's per-pixel sums (H, W, 4: Σw·v, Σw, Σv, count) and Σw², over the
+    pixels the set `served`. A pixel's estimate rests on the samples it weighs: a receiver that sees a cap of
+    the light above its horizon (a soft-falloff ball whose centre lies under the floor, a sun wider than its
+    sky) weighs few, and the average of so few hard maps shows their steps (fuzz 30243: a 1.56 m soft-falloff
+    light 0.1 m under the tilted floor, 51 effective of 512 samples; REFERENCE mae_shadow 0.051 at 256 samples,
+    0.023 at 1024). A pixel's error from its samples is taken to go as 1/√(effective count) (the stratified
+    sequence does better, but the ratio between counts is what matters here), and mae_shadow sees its mean
+    over the penumbra pixels: the count grows until that mean matches the target's, to at most
+    CONE_SAMPLES_MAX·n in all. Pixels fully lit or in umbra are left out: every sample agrees there."""
+    sw, sq = sums[..., 1], square_weights
+    on = served & (sw > 0.0) & (sq > 0.0)
+    v = sums[..., 0][on] / sw[on]
+    penumbra = (v > PENUMBRA_LEVELS[0]) & (v < PENUMBRA_LEVELS[1])
+    if not penumbra.any():
+        return 0
+    effective = sw[on][penumbra] ** 2 / sq[on][penumbra]
+    spread = float(np.mean(1.0 / np.sqrt(np.maximum(effective, 1.0))))
+    wanted = n_done * EFFECTIVE_TARGET * n * spread * spread
+    if wanted <= n_done:
+        return 0
+    return max(int(min(np.ceil(wanted), CONE_SAMPLES_MAX * n)) - n_done, 0)
+
+
 def _probes(lc, count: int = 256) -> np.ndarray:
     """Receiver points to judge sample weights at: the view's lit points where read back (every k-th, at
     most `count`), else its receivers' box corners and centre."""
@@ -452,6 +486,7 @@ class AveragedMaps(Technique):
                 near = near_area_samples(light, n_light, lc.receivers, s.seed)
                 offsets, relative = near if near is not None else (light_samples(light, n_light, s.seed), None)
         sums = frame.texture((frame.width, frame.height), 4)        # zero-filled
+        square_weights = frame.texture((frame.width, frame.height), 1)
         weight_mode = WEIGHT_NONE
         if s.option("averaged_weighted"):
             weight_mode = WEIGHT_AREA if light.kind == AREA else WEIGHT_SUN if light.kind == SUN else WEIGHT_SPHERE
@@ -461,17 +496,29 @@ class AveragedMaps(Technique):
         spot["u_sphere_inside"] = (*map(float, light.position), light.radius ** 2 if true_sphere else -1.0)
         spot["u_soft_disk"] = (0.0, 0.0, 0.0, -1.0)
         # Sample sets: every receiver from `offsets`, except for a true sphere, whose receivers outside it
-        # read maps without the casters inside it and whose receivers inside it sample its surface.
-        sets = [(offsets, relative, None, SIDE_ALL)]
+        # read maps without the casters inside it and whose receivers inside it sample its surface. The last
+        # entry gives a set's first k offsets of its sequence, for more_samples (None: the set's points are
+        # not the start of one sequence, or carry weights of their own).
+        sequence = None
+        if not light.is_delta and relative is None and region is None:
+            def sequence(k):
+                return light_samples(light, k, s.seed, ball)
+        sets = [(offsets, relative, None, SIDE_ALL, sequence)]
         if true_sphere:
             clip, inside = _sphere_clip(light, lc.receivers)
-            sets = ([(offsets, relative, clip, SIDE_OUTSIDE)] if clip else []) + \
-                   ([(sphere_surface(n, s.seed) * light.radius, None, None, SIDE_INSIDE)] if inside else [])
+
+            def surface(k):
+                return sphere_surface(k, s.seed) * light.radius
+            sets = ([(offsets, relative, clip, SIDE_OUTSIDE, sequence)] if clip else []) + \
+                   ([(surface(n), None, None, SIDE_INSIDE, surface)] if inside else [])
         elif beyond_disk:
             # each receiver takes only the samples beyond its facing disk, about half of them: twice as many,
             # within the spot's cap (cone_sample_count: a spot around its receivers has it at 16× already)
             n_beyond = min(2 * n_light, max(n_light, n * CONE_SAMPLES_MAX))
-            sets = [(light_samples(light, n_beyond, s.seed, ball=True), None, None, SIDE_BEYOND_DISK)]
+
+            def ball_points(k):
+                return light_samples(light, k, s.seed, ball=True)
+            sets = [(ball_points(n_beyond), None, None, SIDE_BEYOND_DISK, ball_points)]
             frame.count(beyond_disk_samples=n_beyond)
         total = sum(len(o) for o, *_ in sets)
         # The classes come from the centre's map with every caster, whose rays end at the centre: not those of
@@ -479,7 +526,11 @@ class AveragedMaps(Technique):
         classes = lc.structures.get(LIT_UMBRA) if not (true_sphere or holds_geometry) else None
         skip = {}, {"EARLY_SKIP": 0}
         done = 0
-        for set_offsets, set_relative, clip, side in sets:
+
+        def accumulate(set_offsets, set_relative, clip, side, more: bool = False):
+            """Render the maps of one set's samples and add them to the sums; `more`: samples that continue a
+            set already accumulated, under its early-skip decision."""
+            nonlocal classes, skip, done
             samples = self._samples(frame, lc, set_offsets, set_relative,
                                     size=delta_map_size(lc.view.size, int(s.option("averaged_light_samples")))
                                     if light.is_delta else None, inward=side == SIDE_INSIDE)
@@ -494,7 +545,7 @@ class AveragedMaps(Technique):
             # Pixels proven lit or umbra skip every sample's look-up; resolve writes their 1 or 0, which is
             # what the weighted mean of N equal visibilities is, whatever the weights. The classes allow for
             # sample maps whose texels are up to SKIP_TEXEL_RATIO times the centre view's (bias and offset).
-            if classes is not None:
+            if classes is not None and not more:
                 ratio = max(max(v.texel_size()) for v, *_ in samples) / max(max(lc.view.texel_size()), 1e-30)
                 if ratio > SKIP_TEXEL_RATIO:
                     classes = None
@@ -520,13 +571,26 @@ class AveragedMaps(Technique):
                         "u_side": side, **spot},
                         samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps[0],
                                   **{f"u_depth_maps_{k}": m for k, m in enumerate(maps[1:], 1)}, **skip[0]},
-                        images={0: sums}, buffers={1: records},
+                        images={0: sums, 2: square_weights}, buffers={1: records},
                         defines={**skip[1], "PEELED": layers - 1})
                 for m in maps:
                     frame.give_back(m)          # the next batch draws into the same arrays
                 frame.give_back(records)
                 done += len(part)
                 frame.progress.step(done / total, f"{light.name}: sample {done}/{total}")
+
+        for set_offsets, set_relative, clip, side, sequence in sets:
+            before = frame.read(sums)[..., 3] if sequence is not None else None
+            accumulate(set_offsets, set_relative, clip, side)
+            if sequence is None:
+                continue
+            after = frame.read(sums)
+            extra = more_samples(after, frame.read(square_weights)[..., 0], after[..., 3] > before,
+                                 len(set_offsets), n)
+            if extra:
+                frame.count(more_samples=extra)
+                total += extra
+                accumulate(sequence(len(set_offsets) + extra)[len(set_offsets):], None, clip, side, more=True)
         frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums, **skip[0]}, images={0: out},
                        defines=skip[1])
 

@@ -41,6 +41,9 @@ uniform vec4 u_sphere_inside;     // a true sphere light's centre and r² (r² =
 uniform vec4 u_soft_disk;
 uniform int u_weight_mode;        // WEIGHT_NONE, WEIGHT_AREA (both cosines), WEIGHT_SPHERE (receiver cosine), WEIGHT_SUN
 layout(rgba32f, binding = 0) uniform image2D u_sums;   // Σ w·v, Σ w, Σ v, count
+// Σ w²: with Σ w, the pixel's effective sample count (Σ w)² / Σ w² (Kish), which decides whether the light gets
+// more samples (techniques/averaged.py more_samples)
+layout(r32f, binding = 2) uniform image2D u_square_weights;
 #if EARLY_SKIP
 uniform sampler2D u_classes;      // structures/lit_umbra.py: pixels proven lit or umbra need no sample
 #endif
@@ -137,6 +140,7 @@ void main() {
     float lift = geometric.w;
     vec3 n = texelFetch(g_normal, px, 0).xyz;
     vec4 sums = imageLoad(u_sums, px);
+    float square_weights = imageLoad(u_square_weights, px).r;
     vec3 from_centre = p - u_sphere_inside.xyz;
     bool inside_sphere = dot(from_centre, from_centre) <= u_sphere_inside.w;
     if ((u_side == SIDE_OUTSIDE && inside_sphere) || (u_side == SIDE_INSIDE && !inside_sphere)) return;
@@ -243,6 +247,8 @@ void main() {
             if ((stored < depth && depth - stored < contact) || own_surface_blocks(r, stored, centre)) v = 0.0;
         }
         sums += vec4(w * v, w, v, 1.0);
+        square_weights += w * w;
     }
     imageStore(u_sums, px, sums);
+    imageStore(u_square_weights, px, vec4(square_weights));
 }
