@@ -185,18 +185,31 @@ bool centre_above_plane(Receiver r) {
     return u_light_ortho == 1 ? r.normal.z > 1e-6 : dot(r.normal, r.local) < 0.0;
 }
 
+// Whether the view's origin lies above the plane of the receiver's own surface (through the pixel's point, before
+// the terminator lift and the normal offset move the shadow ray's start off it). A start lifted over the origin
+// (a smooth low-poly surface lit at grazing: the lift of a smooth-shaded cube's face reaches a third of its
+// size) has the origin below its plane while the surface itself still faces it: that ray leaves the start
+// downwards and is blocked by whatever lies between the start and the light, which only the start's own depth
+// tells (fuzz 30385: the lifted starts inside a small cube over a big smooth one, Cycles V 0, REFERENCE 0.4-1).
+bool origin_above_own_surface(Receiver r) {
+    return u_light_ortho == 0 && r.own_plane < 0.0;
+}
+
 // Depth along the map ray through `map_pos` below which a surface lies on the light's side of the receiver's
 // tangent plane, less the bias: what a texel there must be nearer than to shadow the receiver. A ray from the
 // receiver to a light point above its tangent plane stays above that plane, so nothing below it (the
 // receiver's own surface, a convex object's far side, the face behind an edge) can shadow it; following the
 // plane instead of using the centre depth also keeps a flat receiver from shadowing itself across a wide
 // kernel (receiver-plane depth bias). When the map's origin lies on or below the plane, no ray of the map
-// reaches the receiver from above it: nothing in the map counts as a blocker (no_blocker_depth).
+// reaches the receiver from above it: nothing in the map counts as a blocker (no_blocker_depth), unless the
+// shadow ray's start left the surface towards the origin (through_surface, origin_above_own_surface): then the
+// start's own depth decides.
 float receiver_depth_at(Receiver r, vec2 map_pos) {
     // Nothing beyond the receiver's own depth counts: a texel ray that runs past the receiver without meeting
     // its plane (grazing) hits surfaces behind it, which cannot shadow it.
     float far = r.map.z;
-    if (!centre_above_plane(r)) return r.through_surface ? far - r.bias : no_blocker_depth();
+    if (!centre_above_plane(r)) return r.through_surface || origin_above_own_surface(r) ? far - r.bias
+                                                                                    : no_blocker_depth();
     vec2 h = plane_along_map_ray(r.normal, dot(r.normal, r.local), map_pos);
     // With the origin above, the ray descends through the plane where slope < 0; one that never meets the
     // plane stays above it
