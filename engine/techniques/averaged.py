@@ -579,10 +579,10 @@ class AveragedMaps(Technique):
                 done += len(part)
                 frame.progress.step(done / total, f"{light.name}: sample {done}/{total}")
 
-        for set_offsets, set_relative, clip, side, sequence in sets:
-            before = frame.read(sums)[..., 3] if sequence is not None else None
+        for set_offsets, set_relative, clip, side, set_sequence in sets:
+            before = frame.read(sums)[..., 3] if set_sequence is not None else None
             accumulate(set_offsets, set_relative, clip, side)
-            if sequence is None:
+            if set_sequence is None:
                 continue
             after = frame.read(sums)
             extra = more_samples(after, frame.read(square_weights)[..., 0], after[..., 3] > before,
@@ -590,7 +590,7 @@ class AveragedMaps(Technique):
             if extra:
                 frame.count(more_samples=extra)
                 total += extra
-                accumulate(sequence(len(set_offsets) + extra)[len(set_offsets):], None, clip, side, more=True)
+                accumulate(set_sequence(len(set_offsets) + extra)[len(set_offsets):], None, clip, side, more=True)
         frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums, **skip[0]}, images={0: out},
                        defines=skip[1])
 
