@@ -5,7 +5,7 @@ penumbra's mean 1/√count matches that of half the setting's count.
 
 The class: a soft-falloff point light whose centre lies under the floor, so that each floor receiver sees only
 the cap of its ball above its horizon (fuzz 30243: 1.56 m, 0.1 m under a tilted floor; REFERENCE mae_shadow
-0.0506 against a bound of 0.0474, 0.0225 with the extra samples). Hand-built here: a 1.5 m light under a
+0.0506 against a bound of 0.0474, 0.0207 with the extra samples). Hand-built here: a 1.5 m light under a
 floor with a box and a ball on it, 64², Cycles 1024 spp; REFERENCE before → after (bound):
 0.1 m under 0.0229 → 0.0187 (0.035), 0.5 m under 0.0428 → 0.0263 (0.038), 1.0 m under 0.1072 → 0.0387 (0.045,
 eight times the samples, 100 s against 17 s on llvmpipe)."""
