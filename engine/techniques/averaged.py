@@ -579,9 +579,13 @@ class AveragedMaps(Technique):
                 done += len(part)
                 frame.progress.step(done / total, f"{light.name}: sample {done}/{total}")
 
+        # The pixels a set served are those whose sample count it raised; before the first set every count is 0,
+        # so the sums are read back before a set only where an earlier one has added to them.
+        counted = False
         for set_offsets, set_relative, clip, side, set_sequence in sets:
-            before = frame.read(sums)[..., 3] if set_sequence is not None else None
+            before = frame.read(sums)[..., 3] if set_sequence is not None and counted else 0.0
             accumulate(set_offsets, set_relative, clip, side)
+            counted = True
             if set_sequence is None:
                 continue
             after = frame.read(sums)
