@@ -46,6 +46,24 @@ def test_a_wide_view_whose_near_depth_casters_pull_in_takes_the_ball_when_its_re
     assert _fills_ball(light, _view(0.1, 1e-4), True, 0.01)
 
 
+def test_a_true_sphere_fills_its_ball_unless_its_disk_is_within_a_percent_of_it():
+    """A true sphere's rays end on its surface, so its ball carries no error and its disk two: the
+    foreshortening and the missed limb (asin against atan of r/d). Fuzz 30489: a 7.6 m true-sphere spot whose
+    nearest receiver lies 7.6 m from its centre, seen through a window 1.3 wide (tan): the disk, as a
+    soft-falloff light would get, left out the limb that the receivers' horizons let through, where the room's
+    shell blocks part of it (REFERENCE 0.0597 against a bound of 0.0441 at 64²; 0.0154 with the ball)."""
+    from dataclasses import replace
+    true_sphere = replace(_light(7.6), use_soft_falloff=False)
+    assert not _fills_ball(_light(7.6), _view(1.3, 3.6), False, 7.6)      # soft falloff: the disk, as before
+    assert _fills_ball(true_sphere, _view(1.3, 3.6), False, 7.6)
+    # a narrow view far from a small true sphere: the disk is within a percent of it and keeps the cone region
+    far = replace(_light(0.5), use_soft_falloff=False)
+    assert not _fills_ball(far, _view(0.1, 10.0), False, 10.0)
+    # either error alone past a percent takes the ball: a wide view, or a sphere a third of the distance wide
+    assert _fills_ball(far, _view(0.3, 10.0), False, 10.0)
+    assert _fills_ball(far, _view(0.1, 1.5), False, 1.5)
+
+
 SEED_24000 = {
     "seed": 24000,
     "objects": [{"name": "Obj0", "primitive": "MONKEY", "transform": "plain", "location": [-1.136, 0.944, 1.091],

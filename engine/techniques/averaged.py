@@ -5,7 +5,7 @@ against (e.g. Atty et al. §4.1). Penumbra's own ground truth is Cycles (engine/
 Sample points: an R2 low-discrepancy set over the square, mapped to the disk by Shirley & Chiu's concentric
 map for round lights. Sphere lights are sampled over their great disk facing the receivers (the view's XY
 plane) where the view is narrow, else over the ball whose projection along any direction is that disk
-(_fills_ball); a true sphere's receivers outside it over its ball without the casters inside it, those inside it
+(_fills_ball; a true sphere over its ball unless the disk is within a percent of it); a true sphere's receivers outside it over its ball without the casters inside it, those inside it
 over its surface; suns uniformly over their cone of directions, each weighted by the receiver's cosine. Each map's view keeps the light's axes and is refitted from the
 sample point. A spot whose cone lets each receiver see only part of its disk gets its samples where some
 receiver's footprint lies (cone_region), as many as keep the setting's count in each footprint
@@ -134,13 +134,27 @@ def _fills_ball(light: Light, view, split: bool, nearest: float | None) -> bool:
     view's near depth where it is unknown), not the view's near depth alone: casters around the light pull
     that to nothing, and the disk then cut the penumbra on a wall 74° off the axis to cos 74° of its width
     (fuzz 24000: a monkey 0.44 m from a 0.06 m light inside a room; mae_shadow 0.057 at 128², 0.022 with the
-    ball). The nearest receiver is never nearer than the view's near plane, so the larger of the two decides."""
+    ball). The nearest receiver is never nearer than the view's near plane, so the larger of the two decides.
+    A true sphere's ball has no such error: the ray to any point of the ball ends where it enters the sphere,
+    and the casters inside it stay out of the maps (_sphere_clip), so every ray meets Cycles' emitter. Its
+    disk, besides the foreshortening, misses the sphere's limb: from distance d the sphere spans asin(r/d)
+    about its centre, the disk atan(r/d). The disk stays only where both errors are within TRUE_SPHERE_DISK
+    (a narrow spot far from its receivers, whose cone region keeps the samples where they count)."""
     if split or view.face is not None:
         return True
     t = float(np.max(np.abs(view.window)))
     foreshortening = 1.0 - 1.0 / float(np.hypot(1.0, t))
     distance = max(float(view.near), nearest if nearest is not None else 0.0)
+    if not light.use_soft_falloff:
+        x = min(light.radius / max(distance, 1e-9), 1.0)
+        silhouette = 1.0 - float(np.arctan(x) / np.arcsin(x)) if x > 0.0 else 0.0
+        return max(foreshortening, silhouette) > TRUE_SPHERE_DISK
     return foreshortening > light.radius / max(distance, 1e-9)
+
+
+# The largest error _fills_ball accepts from a true sphere's disk (its foreshortening, its missed limb): a view
+# within ±8° of the axis, a sphere under 0.14 of its nearest receiver's distance.
+TRUE_SPHERE_DISK = 0.01
 
 
 # A soft-falloff light with receivers nearer than this many radii serves them from beyond their disks
