@@ -541,13 +541,14 @@ class AveragedMaps(Technique):
         skip = {}, {"EARLY_SKIP": 0}
         done = 0
 
-        def accumulate(set_offsets, set_relative, clip, side, more: bool = False):
-            """Render the maps of one set's samples and add them to the sums; `more`: samples that continue a
-            set already accumulated, under its early-skip decision."""
+        def accumulate(set_offsets, set_relative, clip, side, first: int = 0):
+            """Render the maps of one set's samples and add them to the sums; `first` > 0: samples that
+            continue a set already accumulated (from that index of its sequence), under its early-skip decision."""
             nonlocal classes, skip, done
+            more = first > 0
             samples = self._samples(frame, lc, set_offsets, set_relative,
                                     size=delta_map_size(lc.view.size, int(s.option("averaged_light_samples")))
-                                    if light.is_delta else None, inward=side == SIDE_INSIDE)
+                                    if light.is_delta else None, inward=side == SIDE_INSIDE, first=first)
             if soft_disk:
                 # accumulate.comp soft_disk_weight: the axis of the disk the offsets lie on (the sample views'
                 # Z: each keeps the light's frame), none when they fill the ball
@@ -608,16 +609,18 @@ class AveragedMaps(Technique):
             if extra:
                 frame.count(more_samples=extra)
                 total += extra
-                accumulate(set_sequence(len(set_offsets) + extra)[len(set_offsets):], None, clip, side, more=True)
+                accumulate(set_sequence(len(set_offsets) + extra)[len(set_offsets):], None, clip, side,
+                           first=len(set_offsets))
         frame.dispatch("averaged/resolve.comp", samplers={"u_sums": sums, **skip[0]}, images={0: out},
                        defines=skip[1])
 
     @staticmethod
-    def _samples(frame, lc, offsets, relative=None, size=None, inward=False) -> list:
+    def _samples(frame, lc, offsets, relative=None, size=None, inward=False, first: int = 0) -> list:
         """(view, sample position, emission axis, relative weight) per light sample: each map's view keeps the
-        light's axes and is refitted from the sample point (a sun's turned towards its sample direction);
-        `size` (texels) instead of the centre view's. `inward`: the offsets lie on a true sphere's surface
-        and serve the receivers inside it, each map looking from its point towards the centre."""
+        light's axes and is refitted from the sample point (a sun's turned towards its sample direction), its
+        texel grid shifted by the sample's `grid_shift` (`first`: the index of the first offset in its set's
+        sequence); `size` (texels) instead of the centre view's. `inward`: the offsets lie on a true sphere's
+        surface and serve the receivers inside it, each map looking from its point towards the centre."""
         light = lc.light
         size = lc.view.size if size is None else size
         samples = []
@@ -663,8 +666,37 @@ class AveragedMaps(Technique):
                     # a cone shadows). Kept where it still cannot hold them.
                     view = _facing_receivers(light, world_to_light, local, sample_world, aim, receivers,
                                              lc.casters, size, points) or view
+            if not light.is_delta:
+                view = shifted_grid(view, grid_shift(first + i))
             samples.append((view, sample_world, emit, 1.0 if relative is None else float(relative[i])))
         return samples
+
+
+def grid_shift(index: int) -> np.ndarray:
+    """The sub-texel shift (x, y in [-1/2, 1/2) texels) of sample `index`'s map grid: the Halton point of
+    bases 2 and 3, which shares no stratification with the light's R_d offsets. Where a light's samples lie
+    closer together than a texel seen from its casters (a 1 cm light 13 m from the floor's edge whose shadow
+    falls on a wall 20 m away, fuzz 30544), every map put a hard edge on the same texel boundary, up to half a
+    texel from Cycles' edge, and their average kept that error; over shifted grids it becomes an even blur of
+    one texel about the true edge. The first sample's shift is 0."""
+    def radical_inverse(k: int, base: int) -> float:
+        value, scale = 0.0, 1.0 / base
+        while k:
+            value, k, scale = value + (k % base) * scale, k // base, scale / base
+        return value
+    k = index + 1
+    point = np.array([radical_inverse(k, 2), radical_inverse(k, 3)]) - np.array([0.5, 1.0 / 3.0])
+    return (point + 0.5) % 1.0 - 0.5
+
+
+def shifted_grid(view, shift) -> "lightview.LightView":
+    """`view` with its texel grid moved by `shift` texels (x, y): its window, one texel wider on every side so
+    that it still covers the whole of the old one, at the same texel size."""
+    tx, ty = view.texel_size()
+    x0, x1, y0, y1 = view.window
+    sx, sy = float(shift[0]) * tx, float(shift[1]) * ty
+    return lightview.sub_view(view, (x0 - tx + sx, x1 + tx + sx, y0 - ty + sy, y1 + ty + sy),
+                              view.width + 2, view.height + 2)
 
 
 def _facing_receivers(light: Light, world_to_light, local, sample_world, aim, receivers, casters, size, points):
