@@ -73,6 +73,8 @@ struct Receiver {
     bool through_surface;
     float own_plane;    // dot(normal, point) of the receiver's own surface (before any lift or offset)
     vec3 start;         // the light-local point the shadow ray leaves from: local before the normal offset
+    vec3 surface;       // the light-local point on the receiver's surface (before any lift or offset), where
+                        // Cycles takes the directions to the light's points (its BSDF's and light's cosines)
     float texel;        // world size of a map texel at the receiver (receiver_texel)
     float slope;        // tan of the receiver's angle to the view's origin, at most 10
 };
@@ -110,6 +112,7 @@ Receiver make_receiver(vec3 p, vec3 ng) {
     float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
     float texel = receiver_texel(p, l);
     r.start = l;
+    r.surface = l;
     r.local = l + r.normal * (u_normal_offset * texel);
     r.map = map_coords(r.local);
     r.texel = texel;
@@ -138,7 +141,8 @@ Receiver make_lit_receiver(vec3 p, vec3 ng, vec3 n, float lift, vec3 to_light) {
         q += n * (lift * amount);
     }
     Receiver r = make_receiver(q, ng);
-    r.own_plane = dot(r.normal, light_local(p));
+    r.surface = light_local(p);
+    r.own_plane = dot(r.normal, r.surface);
     // Only while n faces the light: a light point below both horizons carries nothing itself, and the
     // techniques that stand for a whole light by its centre must not let the receiver's own object shadow
     // the part of the light that is above them (a cube's sides, a ball's far side under a wide light).
@@ -424,7 +428,7 @@ float light_sample_weight(Receiver r, vec3 n, vec2 q) {
         float q2 = dot(d, d);
         return max(dot(n, d), 0.0) / (q2 * q2);
     }
-    vec3 to_sample = vec3(q, 0.0) - r.local;
+    vec3 to_sample = vec3(q, 0.0) - r.surface;
     float d2 = max(dot(to_sample, to_sample), 1e-30);
     vec3 dir = to_sample * inversesqrt(d2);
     float w = max(dot(n, dir), 0.0) / d2 * emitter_cosine(dir);
