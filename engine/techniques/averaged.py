@@ -5,9 +5,11 @@ against (e.g. Atty et al. §4.1). Penumbra's own ground truth is Cycles (engine/
 Sample points: an R2 low-discrepancy set over the square, mapped to the disk by Shirley & Chiu's concentric
 map for round lights. Sphere lights are sampled over their great disk facing the receivers (the view's XY
 plane) where the view is narrow, else over the ball whose projection along any direction is that disk
-(_fills_ball; a true sphere over its ball unless the disk is within a percent of it); a true sphere's receivers outside it over its ball without the casters inside it, those inside it
-over its surface; suns uniformly over their cone of directions, each weighted by the receiver's cosine. Each map's view keeps the light's axes and is refitted from the
-sample point. A spot whose cone lets each receiver see only part of its disk gets its samples where some
+(_fills_ball; a true sphere over its ball unless the disk is within a percent of it); a true sphere's
+receivers outside it over its ball without the casters inside it, those inside it over its surface; suns
+uniformly over their cone of directions, each weighted by the receiver's cosine. Each map's view keeps the
+light's axes and is refitted from the sample point, its texel grid shifted by a sub-texel amount of its own
+(grid_shift). A spot whose cone lets each receiver see only part of its disk gets its samples where some
 receiver's footprint lies (cone_region), as many as keep the setting's count in each footprint
 (cone_sample_count).
 """
