@@ -72,6 +72,7 @@ def test_skip_gives_the_full_gathers_visibility_on_built_in_scenes(built_in, tec
     _check_same(snap, technique, monkeypatch, BUILT_IN[name][TECHNIQUES.index(technique)])
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("seed", [1, 4, 7, 8])
 @pytest.mark.parametrize("technique", TECHNIQUES)
 def test_skip_gives_the_full_gathers_visibility_on_generated_scenes(seed, technique, monkeypatch):

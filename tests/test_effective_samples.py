@@ -63,6 +63,7 @@ def _light_under_floor(depth: float) -> dict:
                            floor_half_size=8.0)
 
 
+@pytest.mark.heavy
 def test_a_soft_light_whose_centre_lies_under_the_floor_within_bound():
     """The 0.5 m case of the module's docstring: over its bound with the setting's 256 samples alone."""
     pytest.importorskip("bpy")

@@ -50,6 +50,7 @@ def test_no_light_inside_a_closed_shell(technique, shell):
     assert m["mae_shadow"] <= 0.01
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("technique", sorted(TECHNIQUES))
 def test_a_walled_off_light_gets_no_views(technique):
     """The camera inside a closed room, a sun outside and a lamp inside: the sun is left unlit on every pixel

@@ -56,6 +56,7 @@ CASES = {
 
 # the soft-falloff cases take ~15 s each on the CI machine (twice the samples, three layers each): the wider
 # one runs with the slow sweeps
+@pytest.mark.heavy
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c == "soft_disk_r4" else c
                                   for c in CASES])
 def test_reference_matches_cycles_with_the_light_filling_the_room(case):

@@ -32,12 +32,18 @@ KNOWN_FAILURES = stress.EXPECTED_FAILURES
 COMBINED_SCALE_TOL = 1e-3
 
 
+# The techniques whose stress frames take seconds each on llvmpipe (the default run's warm timings: SSM 109 s and
+# BACKPROJECTION 23 s over the 21 cases, the other six 1.4-11 s): their cases run with the heavy tests.
+HEAVY_TECHNIQUES = ("SSM", "BACKPROJECTION")
+
+
 def _params():
     out = []
     for case in stress.CASES:
         for technique in TECHNIQUES:
             reason = KNOWN_FAILURES.get((case.name, technique))
             marks = [pytest.mark.xfail(reason=reason, strict=True)] if reason else []
+            marks += [pytest.mark.heavy] if technique in HEAVY_TECHNIQUES else []
             out.append(pytest.param(case, technique, marks=marks, id=f"{case.name}-{technique}"))
     return out
 

@@ -304,6 +304,7 @@ def far_side_of_a_ball():
     return extract(bpy.context.evaluated_depsgraph_get(), scene), ref
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("technique", TECHNIQUES)
 def test_wide_sun_lights_the_far_side_of_a_convex_object(far_side_of_a_ball, technique):
     """Receivers facing away from a wide sun's centre compare with no texel of its map (its tangent-plane rule);
@@ -339,6 +340,7 @@ def test_hard_techniques_are_held_to_the_light_centres_hard_shadow():
     assert coarse["mae_shadow"] > same
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("seed,technique", [(28164, "HARD"), (29093, "REFERENCE")])
 def test_shadows_within_a_texel_of_a_grazing_receiver_within_bound(seed, technique):
     """The depth bias's slope term (glsl/common/light_view.glsl SLOPE_BIAS) at 1 per unit of tan θ hid real

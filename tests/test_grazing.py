@@ -87,6 +87,7 @@ def near_contact():
     return scores
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name", ["tilted", "slab", "contact"])
 def test_backprojection_next_to_contacts_within_cycles_16(near_contact, name):
     """Receivers next to their casters: a ball on a tilted floor, a wall's foot lit nearly edge-on, a ball and
@@ -100,6 +101,7 @@ def test_backprojection_next_to_contacts_within_cycles_16(near_contact, name):
     assert ours <= cycles16
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name", ["tilted", "slab", "contact"])
 def test_backprojection_next_to_contacts_within_twice_reference(near_contact, name):
     """The same scenes within twice REFERENCE's mae_shadow (issue 10). (Suzanne: 0.025, not within twice
@@ -223,6 +225,7 @@ def class_scenes():
     return {}
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("name,technique", [
     pytest.param(n, t, marks=[pytest.mark.xfail(strict=True, reason=TWICE_REFERENCE_XFAIL[(n, t)])]
                  if (n, t) in TWICE_REFERENCE_XFAIL else [])

@@ -243,6 +243,7 @@ XFAIL = {"spot_inside_sphere": "inside a spot's true sphere Cycles gives 4–9 %
                                "measured here: mean relative error 4.2 %, Cycles/model 0.969; not understood"}
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.xfail(strict=True, reason=XFAIL[c]))
                                   if c in XFAIL else c for c in CASES])
 def test_irradiance_matches_cycles(case):

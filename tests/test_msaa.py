@@ -25,6 +25,7 @@ def silhouette():
     return snap, reference.cycles_visibility(sc, samples=256, filter_type="BOX")
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("technique", list(pipeline.TECHNIQUES))
 def test_antialiasing_lowers_the_edge_error_against_box_filtered_cycles(technique, silhouette):
     """Stacked plates over a floor at 64²: Combined at the silhouette pixels is closer to Cycles' box-filtered

@@ -434,6 +434,7 @@ def test_gather_split_over_dispatches_equals_one_dispatch(tilted, monkeypatch, o
     assert (a < 0.5).sum() > 100 and np.array_equal(a, b)
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("split", [0.0, 0.3])
 def test_forced_coarse_level_does_not_depend_on_the_dispatch_share(monkeypatch, split):
     """A forced level 1 visits every cell of the map and refits each: its refit's per-part loop once ran

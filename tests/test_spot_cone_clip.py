@@ -71,6 +71,7 @@ def narrow_cone_reference():
     return scene, fuzz.shadow_score(scene, "REFERENCE", (64, 64), samples=1024)[0]["mae_shadow"]
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("technique, scatter", [("BACKPROJECTION", None), ("SSM", "RASTER"), ("SSM", "COMPUTE")])
 def test_under_a_wide_ball_with_a_narrow_cone(narrow_cone_reference, technique, scatter):
     """A 1 m ball behind an 8.6° cone 4 m up: each floor point sees a 0.3 m part of it. Within three times

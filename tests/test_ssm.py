@@ -83,6 +83,7 @@ def test_compute_scatter_equals_raster_scatter():
     assert np.abs(a - b).max() < 1e-4
 
 
+@pytest.mark.heavy
 def test_compute_scatter_of_patches_wider_than_the_loop_limit_equals_raster_scatter():
     """A light 10× the occluder, 1 m below it over a floor 2 m further: every patch's rectangle covers the
     whole 384² map (147k texels), more than llvmpipe runs loop iterations in one invocation (65535).
@@ -98,6 +99,7 @@ def test_compute_scatter_of_patches_wider_than_the_loop_limit_equals_raster_scat
     assert a.min() < 0.95 and np.abs(a - r.passes["Visibility"]).max() < 1e-3     # shadow 0.09 deep
 
 
+@pytest.mark.heavy
 def test_half_float_fails_at_large_maps_and_float32_or_batching_fix_it():
     """Appendix A on the synthetic parallel planes: at 256² a micro-patch hides ~1e-4 of the light, below
     2^-11 of a running FP16 sum past ~0.2, so FP16 blending stalls (the umbra never gets dark)."""
@@ -332,6 +334,7 @@ def _ball_on_ground(size=40):
                            stress.camera(eye=(0.0, -3.5, 4.5), size=size), "ball")
 
 
+@pytest.mark.heavy
 def test_sloped_facets_neither_gap_nor_overlap_over_a_curved_caster():
     """Against ray-traced visibility (stress.oracle, 100 light points). The paper's flat micro-patches sum to
     more than the ball hides, where its flank folds over itself as a receiver sees it: measured mae 0.053.
@@ -356,6 +359,7 @@ def test_sloped_facets_neither_gap_nor_overlap_over_a_curved_caster():
     assert errors[False] > 3.0 * errors[True]
 
 
+@pytest.mark.heavy
 def test_sloped_facets_of_a_sheet_the_receivers_see_from_the_lights_side():
     """A 1.2 m sheet tilted 70° under an 8 m area light 1 m above it: the light reaches past the sheet's plane,
     so receivers beside it see its lit side and its facets' back-projection turns over (a negative sum whose

@@ -123,6 +123,7 @@ def test_cube_faces_lit_by_part_of_the_light_are_not_shadowed_by_their_own_cube(
     assert dark <= 0.01
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("angle", [2.5, 3.1])
 def test_wide_sun_occlusion_weighs_the_solid_angle(angle):
     """A ball on the floor under a sun 2.5 and 3.1 rad wide (64², Cycles 256 spp; fuzz 8015, 8107's suns).

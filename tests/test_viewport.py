@@ -133,6 +133,7 @@ def test_an_instance_takes_its_instancers_role_in_the_viewport_too():
     assert viewport == final
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("technique", ["PCSS", "BACKPROJECTION", "REFERENCE", "SSM"])
 def test_a_viewport_redraw_allocates_no_gpu_memory(balls, technique, monkeypatch):
     """Textures, depth textures, framebuffers and buffers come from the worker's pool (gpu/pool.py). Orbiting

@@ -128,6 +128,7 @@ SUN_WINDOW = ("a sun's view is fitted with no room for its disk of directions (l
               "(tests/test_backprojection.py), so it did not land")
 
 
+@pytest.mark.heavy
 @pytest.mark.parametrize("technique", ["PCSS", "PVSM", "REFERENCE",
                                        pytest.param("SSM", marks=pytest.mark.xfail(strict=True, reason=SUN_WINDOW)),
                                        pytest.param("BACKPROJECTION",
