@@ -255,6 +255,50 @@ def test_layered_depth_maps_equal_one_map_per_view():
         np.testing.assert_array_equal(array[k, :h, :w], m)
 
 
+def test_facet_layers_hold_the_plane_of_the_surface_each_depth_layer_kept():
+    """Frame.render_facet_layers (REFERENCE's facet test, averaged_facets): each layer holds, texel for texel,
+    the normal of the triangle whose depth its depth layer kept: the plane render_facet_map finds for that view
+    alone (up to sign and RGBA16F rounding), (0, 0, 0) where the layer is empty. A ball over the ground,
+    its facets facing every way, seen from four points of a tilted light (so that the view frames are not the
+    world's)."""
+    from penumbra.engine.core import lightview
+    from penumbra.engine.gpu.context import GpuWorker
+    from penumbra.engine.gpu.frame import Frame
+    from penumbra.engine.measure import stress
+    snap = stress.assemble([("Ground", stress.quad((0, 0, 0), 4.0), True, True),
+                            ("Ball", stress.sphere((0.3, -0.2, 1.0), 0.6, rings=8), True, True)],
+                           [stress.area_light((2.0, -1.0, 3.0), target=(0.0, 0.0, 0.0), size=1.0)],
+                           stress.camera(), "ball")
+    receivers = (np.array([-4.0, -4.0, 0.0]), np.array([4.0, 4.0, 0.0]))
+    casters = (np.array([-0.3, -0.8, 0.4]), np.array([0.9, 0.4, 1.6]))
+    views = [lightview.fit(snap.lights[0], receivers, casters, size, origin_local=np.array([x, y, 0.0]))
+             for size, x, y in ((128, 0.0, 0.0), (128, 0.4, -0.3), (96, -0.2, 0.5), (64, 0.5, 0.5))]
+
+    def job(worker):
+        frame = Frame(worker, snap, RenderSettings())
+        try:
+            depths = frame.render_depth_layers(views)
+            facets = frame.render_facet_layers(views, depths)
+            array = np.frombuffer(facets.read(), np.float16).reshape(len(views), facets.height, facets.width, 4)
+            single = [np.frombuffer(t.read(), np.float16).reshape(t.height, t.width, 4)[..., :3].astype(np.float32)
+                      for t in (frame.render_facet_map(v) for v in views)]
+            return array[..., :3].astype(np.float32), single
+        finally:
+            frame.release()
+    array, single = GpuWorker.get().submit(job).result()
+    for k, m in enumerate(single):
+        h, w = m.shape[:2]
+        layer = array[k, :h, :w]
+        known = np.linalg.norm(m, axis=-1) > 0.5
+        # the single view's derivatives span each triangle inside it; texels on a triangle's edge may take
+        # either neighbour in either pass, so most texels, not all, must agree
+        agree = np.abs(np.sum(layer * m, axis=-1)) > 0.999
+        assert known.sum() > 1000 and agree[known].mean() > 0.97, agree[known].mean()
+        ball = known & (np.abs(m[..., 2]) < 0.99)          # the ball's facets, turned away from the axis
+        assert ball.sum() > 100 and agree[ball].mean() > 0.9
+    assert np.abs(array).sum(axis=-1).max() > 0.0
+
+
 def test_peeled_depth_layers_hold_the_surfaces_behind_the_nearest():
     """Frame.render_depth_layers(behind=...) (REFERENCE's soft-falloff samples, SIDE_BEYOND_DISK): each texel
     holds the nearest caster strictly behind the layer given, empty where there is none. Over a plane

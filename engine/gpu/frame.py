@@ -386,36 +386,54 @@ class Frame:
         `clip_sphere` (centre, radius): casters inside that sphere are left out. `behind`: an array this call
         made for the same views, whose depths each texel must lie behind (depth peeling: the next nearest
         caster surface, NO_OCCLUDER where there is none)."""
+        maps = self._layered_target(views, 1, "f4", NO_OCCLUDER)
+        if self.geometry.has_casters:
+            self._draw_layers(views, "common/depth.frag", clip_sphere, {"PEEL": 1} if behind is not None else {},
+                              {"u_in_front": behind} if behind is not None else {}, minimum=True)
+        return maps
+
+    def render_facet_layers(self, views, depths, clip_sphere=None):
+        """For the layered depth maps `depths` that render_depth_layers(views, clip_sphere) made, the plane normal
+        of the triangle each texel holds, in its view's frame and not oriented (common/facet_layers.frag), as
+        an RGBA16F array; (0, 0, 0) where the texel is empty. What render_facet_map gives for one view."""
+        facets = self._layered_target(views, 4, "f2", 0.0)
+        if self.geometry.has_casters:
+            self._draw_layers(views, "common/facet_layers.frag", clip_sphere, {"FACET": 1}, {"u_depths": depths})
+        return facets
+
+    def _layered_target(self, views, components: int, dtype: str, clear: float):
+        """A texture array with a layer per view (the largest view's size), cleared to `clear` and bound as
+        the draw target."""
         w, h = max(v.width for v in views), max(v.height for v in views)
-        maps = self.texture_array((w, h, len(views)), 1)
-        fbo = self.framebuffer([maps])
+        array = self.texture_array((w, h, len(views)), components, dtype)
+        fbo = self.framebuffer([array])
         fbo.use()
-        fbo.clear(NO_OCCLUDER, 0.0, 0.0, 0.0)
-        if not self.geometry.has_casters:
-            return maps
+        fbo.clear(clear, clear if components > 1 else 0.0, clear if components > 2 else 0.0, 0.0)
+        return array
+
+    def _draw_layers(self, views, fragment: str, clip_sphere, defines: dict, samplers: dict, minimum=False):
+        """Draw the casters once into every layer of the bound array target (common/depth_layers.geom), as
+        each of `views` sees them, with `fragment`; MIN blending where `minimum`."""
+        w, h = max(v.width for v in views), max(v.height for v in views)
         rec = np.zeros((len(views), 36), np.float32)    # depth_layers.geom's LayerView structs (std430)
         for k, v in enumerate(views):
             rec[k, 0:16] = np.asarray(v.view, np.float32).T.ravel()
             rec[k, 16:32] = np.asarray(v.view_proj, np.float32).T.ravel()
             rec[k, 32:34] = (v.width / w, v.height / h)
-        defines = {"MAX_LAYERS": MAX_DEPTH_LAYERS}
+        defines = {"MAX_LAYERS": MAX_DEPTH_LAYERS, **defines}
         uniforms = {"u_count": len(views)}
         if clip_sphere is not None:
             defines["CLIP_SPHERE"] = 1
             uniforms["u_clip_sphere"] = (*map(float, clip_sphere[0]), float(clip_sphere[1]) ** 2)
-        if behind is not None:
-            defines["PEEL"] = 1
-        prog = program(self.worker, "common/depth_layers.vert", "common/depth.frag",
-                       geometry="common/depth_layers.geom", defines=defines)
+        prog = program(self.worker, "common/depth_layers.vert", fragment, geometry="common/depth_layers.geom",
+                       defines=defines)
         layer_views = self.buffer(rec.tobytes())
         layer_views.bind_to_storage_buffer(0)
         set_uniforms(prog, uniforms)
-        if behind is not None:
-            bind_samplers(prog, {"u_in_front": behind})
-        with gl_state(self.ctx, depth_test=False, cull=False, minimum=True):
+        bind_samplers(prog, samplers)
+        with gl_state(self.ctx, depth_test=False, cull=False, minimum=minimum):
             self.geometry.render(self.ctx, prog, "caster", position_only=True)
         self.give_back(layer_views)
-        return maps
 
     def new_depth_target(self, view: LightView):
         """A private depth-map target, for structures that must outlive the next render_depth_map call."""

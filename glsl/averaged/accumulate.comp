@@ -21,6 +21,10 @@ uniform sampler2DArray u_depth_maps_2;
 // its surface) or SIDE_INSIDE (samples on its surface, every caster), or for a soft-falloff light whose ball
 // holds geometry SIDE_BEYOND_DISK (beyond_disk_weight): the receivers this set serves.
 uniform int u_side;
+#if FACETS
+// The plane normal of the triangle each texel of u_depth_maps holds (Frame.render_facet_layers)
+uniform sampler2DArray u_facet_maps;
+#endif
 struct Sample {
     mat4 view;
     vec4 window;
@@ -239,6 +243,11 @@ void main() {
             vec2 centre = vec2(t) + 0.5;
             float depth = receiver_depth_at(r, centre);
             if (stored < depth && depth - stored >= contact) v = 0.0;
+#if FACETS
+            // What the bias leaves lit, the plane of the nearest surface's triangle decides (facet_separates)
+            if (v > 0.0 && from <= -NO_OCCLUDER
+                && facet_separates(r, texelFetch(u_facet_maps, ivec3(t, i), 0).xyz, centre, stored)) v = 0.0;
+#endif
         }
         if (v > 0.0 && offset_in_map) {
             float stored = stored_beyond(to, i, from);

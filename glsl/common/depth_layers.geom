@@ -19,14 +19,23 @@ out float v_depth;
 #ifdef CLIP_SPHERE
 out vec3 v_position;            // world position, for common/depth.frag's sphere clip
 #endif
-#ifdef PEEL
-flat out int v_layer;           // which layer of the one in front common/depth.frag compares with
+#if defined(PEEL) || defined(FACET)
+flat out int v_layer;           // the layer, for the maps depth.frag and facet_layers.frag compare with
+#endif
+#ifdef FACET
+flat out vec3 v_facet;          // the triangle's plane normal in the layer's view frame (not oriented)
 #endif
 
 void main() {
     int layer = gl_InvocationID;
     if (layer >= u_count) return;
     LayerView lv = views[layer];
+#ifdef FACET
+    vec3 a = (lv.view * v_world[0]).xyz, b = (lv.view * v_world[1]).xyz, c = (lv.view * v_world[2]).xyz;
+    vec3 facet = cross(b - a, c - a);
+    float facet_len = length(facet);
+    facet = facet_len > 0.0 ? facet / facet_len : vec3(0.0);
+#endif
     for (int k = 0; k < 3; ++k) {
         vec4 world = v_world[k];
         vec4 clip = lv.view_proj * world;
@@ -37,8 +46,11 @@ void main() {
         v_position = world.xyz;
 #endif
         gl_Layer = layer;
-#ifdef PEEL
+#if defined(PEEL) || defined(FACET)
         v_layer = layer;
+#endif
+#ifdef FACET
+        v_facet = facet;
 #endif
         EmitVertex();
     }

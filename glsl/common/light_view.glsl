@@ -247,6 +247,30 @@ vec3 map_ray_point(vec2 map_pos, float depth) {
     return u_light_ortho == 1 ? vec3(w, -depth) : depth * vec3(w, -1.0);
 }
 
+// The triangle a map texel holds, known by its plane (normal n in the view's frame, not oriented; through the
+// texel's surface point at depth `stored` on the map ray through `map_pos`), stands between the view's origin
+// and the receiver's shadow-ray start when they lie strictly on opposite sides of that plane and that point lies
+// in front of the receiver's own plane (a ray from the start to an origin above that plane stays above it, so
+// the other face of a convex edge, behind it, cannot block it). The one map ray cannot tell where the triangle
+// ends within the texel; what the test adds is what the depth bias hides: the far face of a concave crease,
+// rising over the receiver within the bias (fuzz 1103: Suzanne's creases, lit at n·l 0.1 from 3 m, under
+// 1 cm texels). The margins: the stored normal's rounding, and a quarter of the receiver's texel for its own
+// triangle and float rounding (r.texel is at least 8 float steps at the receiver's distance; a tenth let
+// stress zoomed_far's micrometre texels 30 m out shadow their own ball).
+const float FACET_NORMAL_ERROR = 2e-3;      // radians: a unit normal in RGBA16F, 11-bit mantissas
+
+bool facet_separates(Receiver r, vec3 n, vec2 map_pos, float stored) {
+    if (dot(n, n) < 0.25 || !centre_above_plane(r)) return false;
+    vec2 own = plane_along_map_ray(r.normal, dot(r.normal, r.start), map_pos);
+    if (own.x >= 0.0 || stored >= -own.y / own.x) return false;
+    vec3 s = map_ray_point(map_pos, stored);
+    vec3 towards = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : -s;
+    float light_side = dot(n, towards);
+    vec3 d = r.start - s;
+    return abs(light_side) > FACET_NORMAL_ERROR * length(towards)
+        && sign(light_side) * dot(n, d) < -FACET_NORMAL_ERROR * length(d) - 0.25 * r.texel;
+}
+
 #ifdef FACET_MAP
 // The filters that reach texels away from the receiver's own (PCF, PCSS's search) compare them with the
 // receiver's plane extended under them, and a surface that meets the receiver at a concave edge lies in front of
@@ -261,7 +285,6 @@ uniform sampler2D u_facet_map;
 // a sun's ortho view the tangents of its directions (a, b, 1), and 0): core/light_shape.py light_reach_box.
 // Zero: the origin alone (PCF, which stands for the light by its centre whatever its size).
 uniform vec3 u_facet_light = vec3(0.0);
-const float FACET_NORMAL_ERROR = 2e-3;      // radians: a unit normal in RGBA16F, 11-bit mantissas
 
 bool facet_clears_receiver(Receiver r, ivec2 texel, float depth) {
     vec3 n = texelFetch(u_facet_map, texel, 0).xyz;
