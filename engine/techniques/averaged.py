@@ -449,11 +449,15 @@ class AveragedMaps(Technique):
                min=1, max=4096),
         Option("averaged_weighted", True, "Weighted",
                "Weight each light sample by its unoccluded contribution at the pixel"),
-        # Off: fuzz 1103 (Suzanne's concave creases at grazing light) 0.107 against its bound 0.078.
-        Option("averaged_facets", True, "Facet Test",
+        # Off by default for its cost: the second layered pass per batch took REFERENCE's frame on `suzanne` at
+        # 128² from 1.8 s to 5.3 s on llvmpipe (shadow_map 1.45 -> 4.8 s). On: fuzz 1103 (Suzanne's concave
+        # creases at grazing light) 0.107 -> 0.051 against its bound 0.078; fuzz 30740-30779 0/40 over either
+        # way, error x shadow pixels 81.4 -> 81.1, 30749 0.0015 -> 0.015 and 30758 0.0061 -> 0.0135 (bounds 0.13
+        # and 0.10: faces at n.l 0.01 whose texel holds a neighbour the ray itself passes).
+        Option("averaged_facets", False, "Facet Test",
                "Where the depth bias leaves a receiver lit, test it against the plane of the triangle the map "
-               "holds there, so that a crease's far face within the bias still shadows it (one more layered "
-               "pass per batch of sample maps)"),
+               "holds there, so that a crease's far face within the bias still shadows it; about 3x the time of "
+               "the sample maps (one more layered pass per batch)"),
     )
     reads_shared = ("seed", "early_skip")
     coarse = {"averaged_light_samples": 8}
