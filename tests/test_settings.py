@@ -51,7 +51,7 @@ def test_technique_settings_are_options_of_their_technique():
     assert declared["PCF"] == {"pcf_radius", "pcf_taps"}
     assert declared["PCSS"] == {"pcss_blocker_samples", "pcss_filter_samples", "pcss_max_radius",
                                 "pcss_filter_max_radius", "pcss_midpoint"}
-    assert declared["REFERENCE"] == {"averaged_light_samples", "averaged_weighted"}
+    assert declared["REFERENCE"] == {"averaged_light_samples", "averaged_weighted", "averaged_facets"}
     # RenderSettings keeps only what every technique shares.
     shared = {o.name for o in SHARED}
     assert set(RenderSettings.field_names()) == shared | {"technique", "collect_stats", "extras"}
@@ -59,7 +59,8 @@ def test_technique_settings_are_options_of_their_technique():
     assert (s.option("pcf_radius"), s.option("pcf_taps")) == (2.0, 5)
     assert (s.option("pcss_blocker_samples"), s.option("pcss_filter_samples"), s.option("pcss_max_radius"),
             s.option("pcss_filter_max_radius"), s.option("pcss_midpoint")) == (64, 512, 0.1, 0.2, True)
-    assert (s.option("averaged_light_samples"), s.option("averaged_weighted")) == (256, True)
+    assert (s.option("averaged_light_samples"), s.option("averaged_weighted"), s.option("averaged_facets")) == \
+        (256, True, False)
     assert (s.shadow_map_size, s.bias, s.normal_offset, s.seed, s.debug_passes) == (1024, 1.0, 0.25, 0, False)
 
 

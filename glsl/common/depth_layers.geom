@@ -2,7 +2,8 @@
 // light samples), into that view's layer of a texture array (one geometry-shader invocation per layer), as
 // common/depth.vert would draw it into the view's own map. A layer's map may be smaller than the array:
 // `scale` (its size over the array's) maps its clip square onto its corner of the layer; 1 leaves the
-// position exactly as depth.vert's.
+// position exactly as depth.vert's. With FACET (Frame.render_facet_layers) each triangle also carries its plane
+// normal in the layer's view frame, for common/facet_layers.frag.
 layout(triangles, invocations = MAX_LAYERS) in;
 layout(triangle_strip, max_vertices = 3) out;
 
