@@ -388,7 +388,7 @@ class Frame:
         caster surface, NO_OCCLUDER where there is none)."""
         maps = self._layered_target(views, 1, "f4", NO_OCCLUDER)
         if self.geometry.has_casters:
-            self._draw_layers(views, "common/depth.frag", clip_sphere, {"PEEL": 1} if behind is not None else {},
+            self._draw_layers(maps, views, "common/depth.frag", clip_sphere, {"PEEL": 1} if behind is not None else {},
                               {"u_in_front": behind} if behind is not None else {}, minimum=True)
         return maps
 
@@ -398,7 +398,8 @@ class Frame:
         an RGBA16F array; (0, 0, 0) where the texel is empty. What render_facet_map gives for one view."""
         facets = self._layered_target(views, 4, "f2", 0.0)
         if self.geometry.has_casters:
-            self._draw_layers(views, "common/facet_layers.frag", clip_sphere, {"FACET": 1}, {"u_depths": depths})
+            self._draw_layers(facets, views, "common/facet_layers.frag", clip_sphere, {"FACET": 1},
+                              {"u_depths": depths})
         return facets
 
     def _layered_target(self, views, components: int, dtype: str, clear: float):
@@ -411,10 +412,12 @@ class Frame:
         fbo.clear(clear, clear if components > 1 else 0.0, clear if components > 2 else 0.0, 0.0)
         return array
 
-    def _draw_layers(self, views, fragment: str, clip_sphere, defines: dict, samplers: dict, minimum=False):
-        """Draw the casters once into every layer of the bound array target (common/depth_layers.geom), as
-        each of `views` sees them, with `fragment`; MIN blending where `minimum`."""
-        w, h = max(v.width for v in views), max(v.height for v in views)
+    def _draw_layers(self, target, views, fragment: str, clip_sphere, defines: dict, samplers: dict,
+                     minimum=False):
+        """Draw the casters once into every layer of `target` (the bound array _layered_target made for
+        `views`; common/depth_layers.geom), as each view sees them, with `fragment`; MIN blending where
+        `minimum`."""
+        w, h = target.size[:2]
         rec = np.zeros((len(views), 36), np.float32)    # depth_layers.geom's LayerView structs (std430)
         for k, v in enumerate(views):
             rec[k, 0:16] = np.asarray(v.view, np.float32).T.ravel()

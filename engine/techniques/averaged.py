@@ -592,19 +592,21 @@ class AveragedMaps(Technique):
                     maps = [frame.render_depth_layers(views, clip_sphere=clip)]
                     while len(maps) < layers:
                         maps.append(frame.render_depth_layers(views, behind=maps[-1]))
-                    facet_maps = frame.render_facet_layers(views, maps[0], clip_sphere=clip) if facets else None
+                    # the batch's layered arrays, by the sampler accumulate.comp reads each through
+                    arrays = {"u_depth_maps": maps[0],
+                              **{f"u_depth_maps_{k}": m for k, m in enumerate(maps[1:], 1)}}
+                    if facets:
+                        arrays["u_facet_maps"] = frame.render_facet_layers(views, maps[0], clip_sphere=clip)
                 with frame.timings.stage("visibility"):
                     records = frame.buffer(_sample_records(part))
                     frame.dispatch("averaged/accumulate.comp", {
                         **frame.bias_uniforms, "u_count": len(part), "u_weight_mode": weight_mode,
                         "u_side": side, **spot},
-                        samplers={"g_irradiance": lc.irradiance, "u_depth_maps": maps[0],
-                                  **{f"u_depth_maps_{k}": m for k, m in enumerate(maps[1:], 1)}, **skip[0],
-                                  **({"u_facet_maps": facet_maps} if facets else {})},
+                        samplers={"g_irradiance": lc.irradiance, **arrays, **skip[0]},
                         images={0: sums, 2: square_weights}, buffers={1: records},
                         defines={**skip[1], "PEELED": layers - 1, "FACETS": int(facets)})
-                for m in maps + ([facet_maps] if facets else []):
-                    frame.give_back(m)          # the next batch draws into the same arrays
+                for array in arrays.values():
+                    frame.give_back(array)      # the next batch draws into the same arrays
                 frame.give_back(records)
                 done += len(part)
                 frame.progress.step(done / total, f"{light.name}: sample {done}/{total}")

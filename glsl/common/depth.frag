@@ -1,11 +1,6 @@
 in float v_depth;
 layout(location = 0) out float f_depth;
-#ifdef CLIP_SPHERE
-// A true sphere light's maps for receivers outside it: Cycles' shadow rays end on the sphere's surface, so
-// nothing inside the sphere occludes them (averaged.py).
-in vec3 v_position;
-uniform vec4 u_clip_sphere;     // centre, r²
-#endif
+#include "common/clip_sphere.glsl"
 
 #ifdef PEEL
 // A layer behind another (Frame.render_depth_layers' `behind`, REFERENCE's soft-falloff samples): only what
@@ -29,10 +24,7 @@ void main() {
 #ifdef FRONT_FACES
     if (!front_facing()) discard;
 #endif
-#ifdef CLIP_SPHERE
-    vec3 from_centre = v_position - u_clip_sphere.xyz;
-    if (dot(from_centre, from_centre) < u_clip_sphere.w) discard;
-#endif
+    if (inside_clip_sphere()) discard;
 #ifdef PEEL
     float front = texelFetch(u_in_front, ivec3(gl_FragCoord.xy, v_layer), 0).r;
     if (v_depth <= front + PEEL_GAP * abs(front)) discard;

@@ -4,10 +4,8 @@
 in float v_depth;
 flat in int v_layer;
 flat in vec3 v_facet;
-#ifdef CLIP_SPHERE
-in vec3 v_position;
-uniform vec4 u_clip_sphere;     // centre, r² (the casters render_depth_layers left out)
-#endif
+// the casters render_depth_layers left out
+#include "common/clip_sphere.glsl"
 uniform sampler2DArray u_depths;
 layout(location = 0) out vec4 f_normal;
 // relative: the depth a triangle gives a texel is interpolated the same way in both passes, so it matches
@@ -15,10 +13,7 @@ layout(location = 0) out vec4 f_normal;
 const float FACET_MATCH = 1e-6;
 
 void main() {
-#ifdef CLIP_SPHERE
-    vec3 from_centre = v_position - u_clip_sphere.xyz;
-    if (dot(from_centre, from_centre) < u_clip_sphere.w) discard;
-#endif
+    if (inside_clip_sphere()) discard;
     float kept = texelFetch(u_depths, ivec3(gl_FragCoord.xy, v_layer), 0).r;
     if (abs(v_depth - kept) > FACET_MATCH * abs(kept)) discard;
     f_normal = vec4(v_facet, 0.0);

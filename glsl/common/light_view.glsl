@@ -259,14 +259,22 @@ vec3 map_ray_point(vec2 map_pos, float depth) {
 // stress zoomed_far's micrometre texels 30 m out shadow their own ball).
 const float FACET_NORMAL_ERROR = 2e-3;      // radians: a unit normal in RGBA16F, 11-bit mantissas
 
+// What both facet tests (facet_separates, facet_clears_receiver) weigh against a texel's facet plane, from the
+// texel's surface point (the map ray through `map_pos` at `depth`): the way to the view's origin (a sun's ortho
+// view: +Z) and the receiver's shadow-ray start.
+void facet_frame(Receiver r, vec2 map_pos, float depth, out vec3 towards, out vec3 d) {
+    vec3 s = map_ray_point(map_pos, depth);
+    towards = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : -s;
+    d = r.start - s;
+}
+
 bool facet_separates(Receiver r, vec3 n, vec2 map_pos, float stored) {
     if (dot(n, n) < 0.25 || !centre_above_plane(r)) return false;
     vec2 own = plane_along_map_ray(r.normal, dot(r.normal, r.start), map_pos);
     if (own.x >= 0.0 || stored >= -own.y / own.x) return false;
-    vec3 s = map_ray_point(map_pos, stored);
-    vec3 towards = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : -s;
+    vec3 towards, d;
+    facet_frame(r, map_pos, stored, towards, d);
     float light_side = dot(n, towards);
-    vec3 d = r.start - s;
     return abs(light_side) > FACET_NORMAL_ERROR * length(towards)
         && sign(light_side) * dot(n, d) < -FACET_NORMAL_ERROR * length(d) - 0.25 * r.texel;
 }
@@ -289,15 +297,14 @@ uniform vec3 u_facet_light = vec3(0.0);
 bool facet_clears_receiver(Receiver r, ivec2 texel, float depth) {
     vec3 n = texelFetch(u_facet_map, texel, 0).xyz;
     if (dot(n, n) < 0.25) return false;             // no facet known
-    vec3 s = map_ray_point(vec2(texel) + 0.5, depth);
-    vec3 towards_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : -s;
+    vec3 towards_light, d;
+    facet_frame(r, vec2(texel) + 0.5, depth, towards_light, d);
     n = dot(n, towards_light) < 0.0 ? -n : n;
     // How far the light's box (or a sun's directions (a, b, 1)) reaches from its origin towards the plane
     float reach = dot(abs(n), u_facet_light);
     float light_side = u_light_ortho == 1 ? n.z - reach : dot(n, towards_light) - reach;
     // The receiver's side by more than the stored normal's half-float rounding can move the plane there (the
     // depth bias would be too much: a pixel a centimetre from a room's corner lies within it under a grazing light)
-    vec3 d = r.start - s;
     return light_side > 0.0 && dot(n, d) > FACET_NORMAL_ERROR * length(d);
 }
 #endif
