@@ -13,7 +13,9 @@ Per light (Fig. 3 of the paper):
      hidden fraction added (§3.4) — instanced quads with additive blending (default) or a compute pass with
      fixed-point integer atomics (`ssm_scatter`);
   4. two-sided (§3.5): a second occluder map of the farthest back faces gets its own SSM; merged by maximum;
-  5. the SSM is projected onto the receivers in the camera view: V = 1 - occlusion.
+  5. the SSM is projected onto the receivers in the camera view: V = 1 - occlusion; a receiver lit through its
+     own smooth triangle (the terminator lift's start, which the scatter does not reach) takes the hard test of
+     the occluder map instead (ours, glsl/ssm/project.comp).
 
 Roles (Object Properties → Penumbra → Shadow Role): micro-patches come from CASTER and BOTH objects,
 receivers are the RECEIVER and BOTH pixels the camera sees. The paper separates occluders from receivers
@@ -144,6 +146,7 @@ class SoftShadowMaps(Technique):
                 samplers={"g_irradiance": lc.irradiance, "u_ssm_front": front,
                           "u_ssm_back": back if back is not None else front,
                           "u_recv_near": maps.maps["near"], "u_recv_far": maps.maps["far"],
+                          "u_occluder": maps.maps["front"],
                           "u_receiver_mask": mask if mask is not None else maps.maps["near"]},
                 images={0: out, 1: debug})
         if s.debug_passes:

@@ -7,12 +7,21 @@
 // tolerance) or beyond the map says nothing about it: the pixel is in front of every receiver there, i.e. it
 // is not a receiver (a CASTER-only object) and gets no shadow from that tap. Two-pass (§3.5): the front
 // and back-face maps are merged by maximum. Overlapping patches can sum past 1: clamped.
+//
+// A receiver lit through its own smooth triangle (Receiver.through_surface: the light's centre below its
+// triangle, its smooth normal still facing it) takes the hard test of the front occluder map instead, as HARD
+// makes it (ours). The scatter back-projects its patches from the shadow ray's lifted start, but only the
+// patches whose extents reach the pixel's own texels add to its record, and the terminator lift moves the start
+// across the light's rays, several texels away: the patches that hide the start scatter elsewhere. Fuzz 30846
+// (a smooth elliptic cylinder's terminator band, a 6.6 cm spot 5.8 m away): starts 2-7 texels off, the
+// scatter's V 0.3-1 rising with the offset, Cycles and the hard test 0.
 #include "common/pixel.glsl"
 #include "common/light_view.glsl"
 uniform sampler2D u_ssm_front;
 uniform sampler2D u_ssm_back;
 uniform sampler2D u_recv_near;
 uniform sampler2D u_recv_far;
+uniform sampler2D u_occluder;       // the front occluder map (depth, object index)
 uniform int u_two_pass;
 uniform int u_debug;
 uniform sampler2D u_receiver_mask;  // g = 1 where the camera sees a receiver (only with u_has_mask)
@@ -43,48 +52,55 @@ float tap(ivec2 t, float d, float tol, out float w) {
     return mix(occ.r, occ.g, (d - zn) / max(zf - zn, 1e-30));   // metres: one receiver layer (zf = zn)
 }
 
+// The pixel's visibility read from the soft shadow map (bilinear over the texels' records); `raw`: the summed
+// occlusion before clamping (the debug pass), 0 where no tap holds the pixel.
+float projected_visibility(ivec2 px, out float raw) {
+    raw = 0.0;
+    vec3 p = texelFetch(g_position, px, 0).xyz;
+    vec3 ng = texelFetch(g_geometric, px, 0).xyz;
+    // The pixel's own point (no normal offset: it is matched against rasterised receiver depths).
+    vec3 l = light_local(p);
+    vec3 m = map_coords(l);
+    vec3 n = mat3(u_light_view) * ng;
+    vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l);
+    float cos_t = clamp(abs(dot(n, to_light)), 1e-3, 1.0);   // cosine floor: tan_t stays finite
+    float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
+    // Depth may drift over a 1.5-texel bilinear footprint on a slope, plus rasterisation slack (1e-4
+    // of the depth, metres per metre: float32 rounding of rasterised depths with margin).
+    float tol = texel_world(max(m.z, 0.0)) * (1.0 + 1.5 * tan_t) + 1e-4 * m.z;
+    vec2 q = m.xy - 0.5;
+    ivec2 i = ivec2(floor(q));
+    vec2 f = q - vec2(i);
+    float w00, w10, w01, w11;
+    float o00 = tap(i, m.z, tol, w00);
+    float o10 = tap(i + ivec2(1, 0), m.z, tol, w10);
+    float o01 = tap(i + ivec2(0, 1), m.z, tol, w01);
+    float o11 = tap(i + ivec2(1, 1), m.z, tol, w11);
+    // A small floor (1e-3 of a tap's weight, unitless) keeps a valid tap when the bilinear weight falls on
+    // an invalid one.
+    w00 *= (1.0 - f.x) * (1.0 - f.y) + 1e-3;
+    w10 *= f.x * (1.0 - f.y) + 1e-3;
+    w01 *= (1.0 - f.x) * f.y + 1e-3;
+    w11 *= f.x * f.y + 1e-3;
+    float wsum = w00 + w10 + w01 + w11;
+    if (!(wsum > 0.0)) return 1.0;
+    raw = (o00 * w00 + o10 * w10 + o01 * w01 + o11 * w11) / wsum;
+    // Abutting micro-patches tile the light exactly in theory; their float32 sum misses 1 by
+    // ~M·1e-7 (3.6e-5 at 256²). Snap that round-off so umbrae are exactly 0 and lit texels 1.
+    float occ = clamp(raw, 0.0, 1.0);
+    if (occ > 1.0 - 1e-4) occ = 1.0;      // fraction of the light: above the round-off bound
+    if (occ < 1e-6) occ = 0.0;            // fraction of the light: below one texel's float32 error
+    return 1.0 - occ;
+}
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (!pixel_in_image(px)) return;
     float v = 1.0, raw = 0.0;
     bool receiver = u_has_mask == 0 || texelFetch(u_receiver_mask, px, 0).g > 0.5;
     if (pixel_lit(px) && receiver) {
-        vec3 p = texelFetch(g_position, px, 0).xyz;
-        vec3 ng = texelFetch(g_geometric, px, 0).xyz;
-        // The pixel's own point (no normal offset: it is matched against rasterised receiver depths).
-        vec3 l = light_local(p);
-        vec3 m = map_coords(l);
-        vec3 n = mat3(u_light_view) * ng;
-        vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l);
-        float cos_t = clamp(abs(dot(n, to_light)), 1e-3, 1.0);   // cosine floor: tan_t stays finite
-        float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
-        // Depth may drift over a 1.5-texel bilinear footprint on a slope, plus rasterisation slack (1e-4
-        // of the depth, metres per metre: float32 rounding of rasterised depths with margin).
-        float tol = texel_world(max(m.z, 0.0)) * (1.0 + 1.5 * tan_t) + 1e-4 * m.z;
-        vec2 q = m.xy - 0.5;
-        ivec2 i = ivec2(floor(q));
-        vec2 f = q - vec2(i);
-        float w00, w10, w01, w11;
-        float o00 = tap(i, m.z, tol, w00);
-        float o10 = tap(i + ivec2(1, 0), m.z, tol, w10);
-        float o01 = tap(i + ivec2(0, 1), m.z, tol, w01);
-        float o11 = tap(i + ivec2(1, 1), m.z, tol, w11);
-        // A small floor (1e-3 of a tap's weight, unitless) keeps a valid tap when the bilinear weight falls on
-        // an invalid one.
-        w00 *= (1.0 - f.x) * (1.0 - f.y) + 1e-3;
-        w10 *= f.x * (1.0 - f.y) + 1e-3;
-        w01 *= (1.0 - f.x) * f.y + 1e-3;
-        w11 *= f.x * f.y + 1e-3;
-        float wsum = w00 + w10 + w01 + w11;
-        if (wsum > 0.0) {
-            raw = (o00 * w00 + o10 * w10 + o01 * w01 + o11 * w11) / wsum;
-            // Abutting micro-patches tile the light exactly in theory; their float32 sum misses 1 by
-            // ~M·1e-7 (3.6e-5 at 256²). Snap that round-off so umbrae are exactly 0 and lit texels 1.
-            float occ = clamp(raw, 0.0, 1.0);
-            if (occ > 1.0 - 1e-4) occ = 1.0;      // fraction of the light: above the round-off bound
-            if (occ < 1e-6) occ = 0.0;            // fraction of the light: below one texel's float32 error
-            v = 1.0 - occ;
-        }
+        Receiver r = pixel_receiver(px);
+        v = r.through_surface ? map_lit_plane(u_occluder, ivec2(floor(r.map.xy)), r) : projected_visibility(px, raw);
     }
     imageStore(u_visibility, px, vec4(v));
     if (u_debug == 1) imageStore(u_debug_sum, px, vec4(raw));
