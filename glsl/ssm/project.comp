@@ -52,16 +52,15 @@ float tap(ivec2 t, float d, float tol, out float w) {
     return mix(occ.r, occ.g, (d - zn) / max(zf - zn, 1e-30));   // metres: one receiver layer (zf = zn)
 }
 
-// The pixel's visibility read from the soft shadow map (bilinear over the texels' records); `raw`: the summed
-// occlusion before clamping (the debug pass), 0 where no tap holds the pixel.
-float projected_visibility(ivec2 px, out float raw) {
+// The visibility of receiver r read from the soft shadow map (bilinear over the texels' records); `raw`: the
+// summed occlusion before clamping (the debug pass), 0 where no tap holds the pixel.
+float projected_visibility(Receiver r, out float raw) {
     raw = 0.0;
-    vec3 p = texelFetch(g_position, px, 0).xyz;
-    vec3 ng = texelFetch(g_geometric, px, 0).xyz;
-    // The pixel's own point (no normal offset: it is matched against rasterised receiver depths).
-    vec3 l = light_local(p);
+    // The pixel's own point (r.surface: no lift or normal offset, it is matched against rasterised receiver
+    // depths).
+    vec3 l = r.surface;
     vec3 m = map_coords(l);
-    vec3 n = mat3(u_light_view) * ng;
+    vec3 n = r.normal;
     vec3 to_light = u_light_ortho == 1 ? vec3(0.0, 0.0, 1.0) : normalize(-l);
     float cos_t = clamp(abs(dot(n, to_light)), 1e-3, 1.0);   // cosine floor: tan_t stays finite
     float tan_t = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 10.0);
@@ -100,7 +99,7 @@ void main() {
     bool receiver = u_has_mask == 0 || texelFetch(u_receiver_mask, px, 0).g > 0.5;
     if (pixel_lit(px) && receiver) {
         Receiver r = pixel_receiver(px);
-        v = r.through_surface ? map_lit_plane(u_occluder, ivec2(floor(r.map.xy)), r) : projected_visibility(px, raw);
+        v = r.through_surface ? map_lit_plane(u_occluder, ivec2(floor(r.map.xy)), r) : projected_visibility(r, raw);
     }
     imageStore(u_visibility, px, vec4(v));
     if (u_debug == 1) imageStore(u_debug_sum, px, vec4(raw));
